@@ -1,0 +1,94 @@
+"""Machinery shared by the ODE-solver adapters: time ordering and least-squares identification."""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple, Optional
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from harness.cases import Observations
+
+__all__ = ["ObservationLayout", "identify_least_squares", "TOLERANCE_CONFIGS"]
+
+# rtol 1e-3, atol 1e-6 are MATLAB ode45's defaults, which made the paper's data; "tight" is for
+# identification and for comparing at high accuracy.
+TOLERANCE_CONFIGS = {
+    "default": {"rtol": 1e-3, "atol": 1e-6},
+    "tight": {"rtol": 1e-10, "atol": 1e-12},
+}
+
+
+class ObservationLayout(NamedTuple):
+    """Scattered samples as a (P1, t) grid: sorted unique t (s) and P1, and the index of each
+    sample in them, so one batched simulation on the grid serves every sample."""
+
+    t: np.ndarray
+    P1: np.ndarray
+    t_index: np.ndarray
+    p1_index: np.ndarray
+
+    @classmethod
+    def of(cls, obs: Observations) -> "ObservationLayout":
+        t, t_index = np.unique(obs.t, return_inverse=True)
+        p1, p1_index = np.unique(obs.P1, return_inverse=True)
+        return cls(t, p1, t_index, p1_index)
+
+    def pick(self, grid: np.ndarray) -> np.ndarray:
+        """Values at the samples from an array of shape (len(P1), len(t))."""
+        return grid[self.p1_index, self.t_index]
+
+
+# Simulator for identification: (m, d, with_jacobian) -> (delta, omega, d delta/d(m, d),
+# d omega/d(m, d)) on the layout's grid, arrays (n_p, n_t) and (n_p, n_t, 2); jacobians None unless
+# asked for.
+Simulator = Callable[
+    [float, float, bool], tuple[np.ndarray, np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]
+]
+
+
+def identify_least_squares(
+    simulate: Simulator, obs: Observations, layout: ObservationLayout,
+    m_bounds: tuple[float, float], d_bounds: tuple[float, float], analytic_jacobian: bool,
+    n_start: int = 6, xtol: float = 1e-12,
+) -> tuple[float, float, int, bool, str]:
+    """Least squares over theta = (log m, log d) of the misfit in delta (and omega when observed).
+
+    The misfit of an oscillation over 20 s has local minima in m (the frequency), so the start is the
+    best point of an `n_start` x `n_start` log-spaced grid over the bounds; then a trust-region
+    Gauss-Newton (`scipy.optimize.least_squares`) refines it, with the simulator's sensitivities when
+    `analytic_jacobian` (else finite differences). Returns (m, d, simulations, success, message).
+    """
+    with_omega = obs.omega is not None
+    target = np.concatenate([obs.delta, obs.omega]) if with_omega else obs.delta
+    n_sim = 0
+
+    def misfit(theta: np.ndarray, want_jac: bool = False):
+        nonlocal n_sim
+        n_sim += 1
+        m, d = np.exp(theta)
+        delta, omega, jd, jo = simulate(m, d, want_jac)
+        r = layout.pick(delta)
+        if with_omega:
+            r = np.concatenate([r, layout.pick(omega)])
+        if not want_jac:
+            return r - target
+        jac = layout.pick(jd)
+        if with_omega:
+            jac = np.concatenate([jac, layout.pick(jo)])
+        return jac * np.array([m, d])  # chain rule for the log parameters
+
+    lower = np.log([m_bounds[0], d_bounds[0]])
+    upper = np.log([m_bounds[1], d_bounds[1]])
+    grid = [np.linspace(lo, hi, n_start + 2)[1:-1] for lo, hi in zip(lower, upper)]
+    starts = [np.array([a, b]) for a in grid[0] for b in grid[1]]
+    costs = [np.sum(misfit(theta) ** 2) for theta in starts]
+    theta0 = starts[int(np.nanargmin(costs))]
+
+    jac = (lambda theta: misfit(theta, want_jac=True)) if analytic_jacobian else "2-point"
+    result = least_squares(
+        misfit, theta0, jac=jac, bounds=(lower, upper), xtol=xtol, ftol=1e-15, gtol=1e-15,
+        x_scale=1.0, max_nfev=200,
+    )
+    m, d = np.exp(result.x)
+    return float(m), float(d), n_sim, bool(result.success), str(result.message)
