@@ -8,19 +8,18 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
 __all__ = [
+    "CASES",
+    "IDENTIFICATION_PAIRS",
+    "SMIB_IDENTIFICATION",
+    "SMIB_INFERENCE",
     "Case",
     "Observations",
-    "SMIB_INFERENCE",
-    "SMIB_IDENTIFICATION",
-    "IDENTIFICATION_PAIRS",
-    "CASES",
-    "standard_grid",
     "check_array",
+    "standard_grid",
 ]
 
 
@@ -83,7 +82,7 @@ class Case:
         if not self.p1_min <= self.p1_max:
             raise ValueError(f"Case.p1_min must be <= p1_max, got {self.p1_min!r} > {self.p1_max!r}")
 
-    def with_params(self, m: float, d: float, name: Optional[str] = None) -> "Case":
+    def with_params(self, m: float, d: float, name: str | None = None) -> Case:
         """The same case with another inertia `m` and damping `d`."""
         return dataclasses.replace(self, m=m, d=d, name=name or f"{self.name}[m={m:g},d={d:g}]")
 
@@ -99,7 +98,7 @@ class Observations:
     t: np.ndarray
     P1: np.ndarray
     delta: np.ndarray
-    omega: Optional[np.ndarray] = None
+    omega: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "t", check_array("Observations.t", self.t, nonnegative=True))

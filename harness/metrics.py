@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rel_l2", "max_abs", "rel_error", "rel_l2_per_row"]
+__all__ = ["max_abs", "rel_error", "rel_l2", "rel_l2_per_row"]
 
 
 def rel_l2(pred: np.ndarray, ref: np.ndarray) -> float:

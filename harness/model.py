@@ -11,14 +11,15 @@ or a numpy right-hand side; a multi-machine system is a change of data, not of c
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from harness.cases import Case
 
-__all__ = ["SwingSystem", "smib_system", "accelerations", "residual"]
+__all__ = ["SwingSystem", "accelerations", "residual", "smib_system"]
 
 
 @dataclass(frozen=True)

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from harness.cases import Case, check_array
+from harness.cases import CASES, Case, check_array
 from harness.model import accelerations, smib_system
 
-__all__ = ["reference", "REFERENCE_TOL", "load_seed_reference"]
+__all__ = ["REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference", "seed_reference"]
 
 REFERENCE_TOL = 1e-12
 
@@ -56,3 +57,20 @@ def load_seed_reference(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     data = loadmat(path)
     return data["t"].ravel(), data["x"].ravel(), data["usol"]
+
+
+SEED_DIR = Path(__file__).resolve().parents[1] / "data" / "seed-reference"
+SEED_FILES = {"smib-inference": "swingEquation_inference.mat",
+              "smib-identification": "swingEquation_identification.mat"}
+
+
+def seed_reference(case: Case) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The paper's ode45 data for `case` (t, P1, delta; see `load_seed_reference`), or None when
+    the paper published none for it (compared by case parameters, not by name)."""
+    for name, filename in SEED_FILES.items():
+        paper_case = CASES[name]
+        same = all(getattr(case, f) == getattr(paper_case, f)
+                   for f in ("m", "d", "b", "delta0", "omega0", "t_final", "p1_min", "p1_max"))
+        if same and (SEED_DIR / filename).exists():
+            return load_seed_reference(SEED_DIR / filename)
+    return None

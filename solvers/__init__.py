@@ -13,7 +13,7 @@ from typing import Any
 from harness.cases import Case
 from solvers.base import AbstractSolver
 
-__all__ = ["SOLVERS", "UNAVAILABLE", "make_solver", "available_solvers", "SolverUnavailable"]
+__all__ = ["SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers", "make_solver"]
 
 # name -> (module, class, the optional package it needs)
 _ADAPTERS = {

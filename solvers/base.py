@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import abc
 import time
-from typing import Any, ClassVar, Mapping, NamedTuple
+from collections.abc import Mapping
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
 from harness.cases import Case, Observations, check_array
 
 __all__ = [
-    "AbstractSolver", "Trajectory", "FitReport", "Identification", "SolveError", "NotFittedError",
+    "AbstractSolver",
+    "FitReport",
+    "Identification",
+    "NotFittedError",
+    "SolveError",
+    "Trajectory",
 ]
 
 
@@ -76,7 +82,7 @@ class AbstractSolver(abc.ABC):
 
     def __init__(self, case: Case, config: str = "default", **options: Any) -> None:
         if not isinstance(case, Case):
-            raise ValueError(f"case must be a harness.cases.Case, got {type(case).__name__}")
+            raise ValueError(f"case must be a harness.cases.Case, got {type(case).__name__}")  # noqa: TRY004
         if config not in self.CONFIGS:
             raise ValueError(
                 f"unknown config {config!r} for {self.name}; known: {', '.join(self.CONFIGS)}"
@@ -140,7 +146,7 @@ class AbstractSolver(abc.ABC):
     def identify(self, obs: Observations) -> Identification:
         """Estimate m and d (p.u.) from scattered observations of the case's system."""
         if not isinstance(obs, Observations):
-            raise ValueError(f"obs must be harness.cases.Observations, got {type(obs).__name__}")
+            raise ValueError(f"obs must be harness.cases.Observations, got {type(obs).__name__}")  # noqa: TRY004
         if len(obs) < 2:
             raise ValueError(f"identify needs at least 2 samples (the unknowns m, d), got {len(obs)}")
         start = time.perf_counter()

@@ -68,8 +68,9 @@ class CasadiCVODES(AbstractSolver):
         try:
             return [np.asarray(out) for out in fn(*args)]
         except RuntimeError as exc:
-            where = f"P1={P1[0]!r}" if P1.size == 1 else f"one of P1 in [{P1.min()!r}, {P1.max()!r}]"
-            raise SolveError(f"{self.name}: CVODES failed at {where}: {exc}") from exc
+            where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
+            reason = str(exc).strip().splitlines()[-1]
+            raise SolveError(f"{self.name}: CVODES failed at {where}: {reason}") from exc
 
     def _x0(self, n: int) -> np.ndarray:
         return np.tile([[self.case.delta0], [self.case.omega0]], (1, n))
@@ -83,7 +84,14 @@ class CasadiCVODES(AbstractSolver):
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         times, order = np.unique(t, return_inverse=True)
-        y = self._states(times, P1, self.case.m, self.case.d)
+        try:
+            y = self._states(times, P1, self.case.m, self.case.d)
+        except SolveError:
+            if P1.size == 1:
+                raise
+            for p1 in P1:  # name the trajectory that fails: rerun one at a time
+                self._states(times, np.array([p1]), self.case.m, self.case.d)
+            raise
         return y[0][:, order], y[1][:, order]
 
     def _build_identifier(self, times: tuple[float, ...], n_p1: int):

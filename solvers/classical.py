@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple, Optional
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from harness.cases import Observations
 
-__all__ = ["ObservationLayout", "identify_least_squares", "TOLERANCE_CONFIGS"]
+__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "identify_least_squares"]
 
 # rtol 1e-3, atol 1e-6 are MATLAB ode45's defaults, which made the paper's data; "tight" is for
 # identification and for comparing at high accuracy.
@@ -29,7 +30,7 @@ class ObservationLayout(NamedTuple):
     p1_index: np.ndarray
 
     @classmethod
-    def of(cls, obs: Observations) -> "ObservationLayout":
+    def of(cls, obs: Observations) -> ObservationLayout:
         t, t_index = np.unique(obs.t, return_inverse=True)
         p1, p1_index = np.unique(obs.P1, return_inverse=True)
         return cls(t, p1, t_index, p1_index)
@@ -43,7 +44,7 @@ class ObservationLayout(NamedTuple):
 # d omega/d(m, d)) on the layout's grid, arrays (n_p, n_t) and (n_p, n_t, 2); jacobians None unless
 # asked for.
 Simulator = Callable[
-    [float, float, bool], tuple[np.ndarray, np.ndarray, Optional[np.ndarray], Optional[np.ndarray]]
+    [float, float, bool], tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]
 ]
 
 

@@ -57,7 +57,7 @@ class ScipyRK45(AbstractSolver):
             rtol=self.options["rtol"], atol=self.options["atol"], args=(system, P1[None, :]),
         )
         if not sol.success:
-            where = f"P1={P1[0]!r}" if P1.size == 1 else f"P1 in [{P1.min()!r}, {P1.max()!r}]"
+            where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
             raise SolveError(f"{self.name}: integration failed at {where}: {sol.message}")
         return sol.y.reshape(2, P1.size, t.size)
 

@@ -1,0 +1,40 @@
+"""Accuracy on the paper's 100 x 201 grid against the tight reference and the paper's own data."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness import metrics
+from harness.cases import Case, standard_grid
+from harness.reference import reference, seed_reference
+from harness.runs import Settings
+from solvers.base import AbstractSolver
+
+
+def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray) -> dict:
+    per_trajectory = metrics.rel_l2_per_row(pred, ref)
+    return {
+        "quantity": quantity, "against": against, "unit": unit,
+        "rel_l2": metrics.rel_l2(pred, ref), "max_abs": metrics.max_abs(pred, ref),
+        "best_trajectory_rel_l2": float(per_trajectory.min()),
+        "worst_trajectory_rel_l2": float(per_trajectory.max()),
+    }
+
+
+def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+    """Relative L2 (whole grid, the paper's measure), max abs error, best and worst trajectory of
+    delta (rad) and omega (rad/s) against DOP853 at 1e-12; delta also against the paper's ode45
+    data when the case has them."""
+    t, P1 = standard_grid(case)
+    traj = solver.solve(t, P1)
+    ref_delta, ref_omega = reference(case, t, P1)
+    rows = [
+        _errors("delta", "reference", "rad", traj.delta, ref_delta),
+        _errors("omega", "reference", "rad/s", traj.omega, ref_omega),
+    ]
+    seed = seed_reference(case)
+    if seed is not None:
+        t_seed, p1_seed, delta_seed = seed
+        pred = traj.delta if np.allclose(t_seed, t) and np.allclose(p1_seed, P1) else solver.solve(t_seed, p1_seed).delta
+        rows.append(_errors("delta", "paper ode45 data", "rad", pred, delta_seed))
+    return rows

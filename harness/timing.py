@@ -1,0 +1,65 @@
+"""Wall-clock measurement: warm calls, repeats, medians, pinned threads."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+__all__ = ["THREAD_ENV", "Timing", "pin_threads", "time_call"]
+
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+
+def pin_threads(n: int) -> None:
+    """Pin BLAS/OpenMP, torch and XLA to `n` threads. Environment variables only take effect in
+    libraries not yet loaded, so call this first thing in a process (the CLI and asv do)."""
+    for var in THREAD_ENV:
+        os.environ[var] = str(n)
+    os.environ["SWINGBENCH_THREADS"] = str(n)
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "intra_op_parallelism_threads" not in flags:
+        os.environ["XLA_FLAGS"] = (
+            f"{flags} --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads={n}"
+        ).strip()
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        pass
+    else:
+        threadpool_limits(n)
+
+
+class Timing(NamedTuple):
+    """Seconds per call over `repeats` warm calls: median, 25th and 75th percentiles, minimum."""
+
+    median_s: float
+    q25_s: float
+    q75_s: float
+    min_s: float
+    repeats: int
+
+
+def time_call(
+    fn: Callable[[], Any], *, warmup: int = 1, min_repeats: int = 5, max_repeats: int = 1000,
+    budget_s: float = 1.0,
+) -> Timing:
+    """Time `fn()` after `warmup` untimed calls: at least `min_repeats` calls, then more until
+    `budget_s` seconds are spent or `max_repeats` are done. Each call is timed on its own with
+    `time.perf_counter`, so the statistics describe single calls, not a batch average."""
+    for _ in range(warmup):
+        fn()
+    samples: list[float] = []
+    spent = 0.0
+    while len(samples) < min_repeats or (spent < budget_s and len(samples) < max_repeats):
+        start = time.perf_counter()
+        fn()
+        elapsed = time.perf_counter() - start
+        samples.append(elapsed)
+        spent += elapsed
+    arr = np.asarray(samples)
+    q25, median, q75 = np.percentile(arr, [25, 50, 75])
+    return Timing(float(median), float(q25), float(q75), float(arr.min()), arr.size)

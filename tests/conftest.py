@@ -1,0 +1,43 @@
+"""Shared fixtures: every registered adapter, fitted once per session on a small budget."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "2")
+
+import pytest
+
+from harness.cases import SMIB_INFERENCE
+from solvers import SOLVERS, UNAVAILABLE, make_solver
+
+ALL_SOLVERS = tuple(SOLVERS)
+
+# Small budgets for the adapters that train: the contract tests check behaviour, not accuracy.
+SMALL_BUDGET = {"max_iterations": 30, "max_seconds": 20.0, "progress": False}
+
+
+def small_options(name: str) -> dict:
+    cls = SOLVERS[name]
+    return {k: v for k, v in SMALL_BUDGET.items() if k in cls.OPTIONS}
+
+
+def require(name: str) -> None:
+    if SOLVERS[name] is None:
+        pytest.skip(UNAVAILABLE[name])
+
+
+@pytest.fixture(scope="session")
+def fitted_solvers() -> dict:
+    """name -> a fitted adapter on SMIB_INFERENCE (built lazily, once per session)."""
+    cache: dict = {}
+
+    class Lazy(dict):
+        def __missing__(self, name):
+            require(name)
+            solver = make_solver(name, SMIB_INFERENCE, **small_options(name))
+            solver.fit()
+            self[name] = solver
+            return solver
+
+    return Lazy(cache)
