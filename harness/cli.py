@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification")
+
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
 single-machine infinite-bus swing equation (Misyris et al., PESGM 2020).
@@ -21,34 +23,39 @@ def _parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
 
-    run = sub.add_parser("run", help="run suites and write tables to --out",
-                         description="Run suites for solvers x configs x cases; write tidy CSV, Markdown "
-                                     "tables and metadata to --out and print the tables.")
+    run = sub.add_parser(
+        "run", help="run suites and write tables to --out",
+        description="Run suites for solvers x configs x seeds; append each row to OUT/rows.jsonl as it is "
+                    "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
+                    "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help="suites to run (default: all): accuracy, latency")
+                     help=f"suites to run (default: all): {', '.join(SUITE_NAMES)}")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help="adapters to run (default: every registered one)")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter)")
     run.add_argument("--case", nargs="+", default=["smib-inference"], metavar="NAME",
-                     help="cases (default: smib-inference); known: smib-inference, smib-identification")
-    run.add_argument("--quick", action="store_true", help="small timing budgets: a smoke test")
-    run.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+                     help="cases of the forward suites (default: smib-inference); identification always "
+                          "uses smib-identification with the (m, d) pairs")
+    size = run.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true",
+                      help="smoke test, a few minutes: one seed, 10 s PINN budgets, small timing budgets")
+    size.add_argument("--full", action="store_true",
+                      help="every seed (5), pair (10) and noise level; long")
+    run.add_argument("--resume", action="store_true",
+                     help="keep OUT/rows.jsonl and run only what it does not hold yet")
+    run.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--out", type=Path, default=Path("results"), help="output folder (default results/)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
                      help="also replace the generated tables section of this README")
+    run.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
+                     help="progress bar on stderr (auto: only on a terminal)")
 
     report = sub.add_parser("report", help="re-render tables from a results folder without running",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables.")
     report.add_argument("directory", type=Path)
     return parser
-
-
-def _progress(quiet: bool):
-    if quiet:
-        return None
-    return lambda msg: print(f"[swingbench] {msg}", file=sys.stderr, flush=True)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -58,10 +65,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise SystemExit("--threads must be >= 1")
     pin_threads(args.threads)  # before numpy's BLAS, torch or XLA start their pools
 
+    from dataclasses import replace
+
     from harness.cases import CASES
     from harness.report import metadata, write_report
     from harness.runner import run_suites
-    from harness.runs import Settings, default_specs
+    from harness.runs import DEFAULT, FULL, QUICK, default_specs
     from harness.store import RowStore, atomic_write
     from harness.suites import SUITES
 
@@ -74,19 +83,21 @@ def cmd_run(args: argparse.Namespace) -> int:
         if name not in CASES:
             raise SystemExit(f"unknown case {name!r}; known: {', '.join(CASES)}")
         cases.append(CASES[name])
+    settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
+                       threads=args.threads, retrain=args.retrain)
     try:
-        specs = default_specs(args.solver, args.config)
+        specs = default_specs(args.solver, args.config, settings)
     except ValueError as exc:
         raise SystemExit(str(exc)) from None
     if not specs:
         raise SystemExit("no solver/config combination selected")
-    settings = Settings(quick=args.quick, threads=args.threads,
-                        latency_budget_s=0.2 if args.quick else 1.0, min_repeats=3 if args.quick else 5)
     store = RowStore(args.out)
-    store.clear()
-    meta = metadata(args.threads)
-    atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2))
-    run_suites(specs, cases, suites, settings, store, progress=_progress(args.quiet))
+    if not args.resume:
+        store.clear()
+    meta = {**metadata(args.threads), "settings": settings.name, "argv": sys.argv[1:]}
+    atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
+    progress = {"auto": None, "on": True, "off": False}[args.progress]
+    run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)
     markdown = write_report(store.rows(), args.out, meta)
     print(markdown)
     if args.update_readme:

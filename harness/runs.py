@@ -1,25 +1,29 @@
-"""What a run measures: solver specifications (adapter, named config, option overrides) and settings."""
+"""What a run measures: solver specifications (adapter, named config, seed, option overrides) and
+the settings of a run (budgets, seeds, pairs, noise levels)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-from harness.cases import Case
+from harness.cases import IDENTIFICATION_PAIRS, Case
 from solvers import SOLVERS, make_solver
 from solvers.base import AbstractSolver
 
-__all__ = ["Settings", "SolverSpec", "default_specs"]
+__all__ = ["DEFAULT", "FULL", "QUICK", "Settings", "SolverSpec", "default_specs"]
 
 
 @dataclass(frozen=True)
 class SolverSpec:
-    """One row label of the tables: an adapter name, one of its named configs, option overrides."""
+    """One row label of the tables: an adapter, one of its named configs, option overrides and,
+    for adapters that train, a seed."""
 
     solver: str
     config: str = "default"
     options: tuple[tuple[str, Any], ...] = ()
+    seed: int | None = None
 
     @property
     def variant(self) -> str:
@@ -28,34 +32,72 @@ class SolverSpec:
 
     @property
     def label(self) -> str:
-        return f"{self.solver}[{self.config}{',' + self.variant if self.options else ''}]"
+        extra = "".join(f",{part}" for part in (self.variant, "" if self.seed is None else f"seed={self.seed}") if part)
+        return f"{self.solver}[{self.config}{extra}]"
 
     def make(self, case: Case, **extra: Any) -> AbstractSolver:
-        return make_solver(self.solver, case, self.config, **dict(self.options), **extra)
+        options = {**dict(self.options), **extra}
+        if self.seed is not None:
+            options["seed"] = self.seed
+        return make_solver(self.solver, case, self.config, **options)
 
-    def key(self) -> dict[str, str]:
+    def key(self) -> dict[str, Any]:
         """The columns that identify this spec in a row."""
-        return {"solver": self.solver, "config": self.config, "variant": self.variant}
+        return {"solver": self.solver, "config": self.config, "variant": self.variant,
+                "seed": -1 if self.seed is None else self.seed}
 
 
 @dataclass(frozen=True)
 class Settings:
-    """Knobs of a run. `quick` shrinks budgets for a smoke test; timings are medians of repeats
-    within `latency_budget_s` seconds per measurement; `threads` is recorded with the results."""
+    """Knobs of a run. Timings are medians of warm repeats within `latency_budget_s` seconds per
+    measurement (at least `min_repeats`); calls estimated to take longer than `max_call_s` are
+    skipped with a row that says so. Adapters that train run once per seed in `seeds`;
+    `pinn_options` override their budgets. Identification runs over `pairs` x `noise_levels`
+    (relative Gaussian noise) with `n_u` samples. `threads` is recorded with the results."""
 
-    quick: bool = False
+    name: str = "default"
     threads: int = 2
     latency_budget_s: float = 1.0
     min_repeats: int = 5
-    seeds: tuple[int, ...] = (0,)
-    extra: dict = field(default_factory=dict)
+    max_call_s: float = 3.0
+    seeds: tuple[int, ...] = (0, 1, 2)
+    paper_config_seeds: tuple[int, ...] = (0,)
+    pinn_options: dict = field(default_factory=dict)
+    throughput_sizes: tuple[int, ...] = (1, 10, 100, 1000)
+    t1_values_s: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
+    pairs: tuple[tuple[float, float], ...] = IDENTIFICATION_PAIRS
+    noise_levels: tuple[float, ...] = (0.0, 0.01)
+    n_u: int = 100
+    wp_rtols: tuple[float, ...] = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+    cache_dir: Path | None = Path(".cache/models")
+    retrain: bool = False
+
+    @property
+    def quick(self) -> bool:
+        return self.name == "quick"
+
+
+QUICK = Settings(
+    name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, seeds=(0,),
+    pinn_options={"max_seconds": 10.0}, throughput_sizes=(1, 100), t1_values_s=(1.0, 10.0, 20.0),
+    pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
+)
+# make bench: every suite within ~30 minutes on 2 cores; identification on 3 of the 10 pairs
+DEFAULT = Settings(pairs=IDENTIFICATION_PAIRS[::4])
+FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), paper_config_seeds=(0, 1, 2), max_call_s=60.0)
+
+
+def _trains(cls) -> bool:
+    return "seed" in cls.OPTIONS
 
 
 def default_specs(
     solvers: Iterable[str] | None = None, configs: Iterable[str] | None = None,
+    settings: Settings = DEFAULT,
 ) -> list[SolverSpec]:
     """Every registered adapter (installed or not: missing ones become 'skipped' rows) in each of
-    its named configs, and for adapters with a `batch` option also the stacked batch mode."""
+    its named configs; adapters with a `batch` option also in the stacked mode; adapters that train
+    once per seed (`settings.seeds` for "default", `settings.paper_config_seeds` for the others)."""
     names = list(SOLVERS) if solvers is None else list(solvers)
     unknown = [n for n in names if n not in SOLVERS]
     if unknown:
@@ -68,6 +110,11 @@ def default_specs(
             continue
         for config in cls.CONFIGS:
             if configs is not None and config not in configs:
+                continue
+            if _trains(cls):
+                seeds = settings.seeds if config == "default" else settings.paper_config_seeds
+                options = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
+                specs.extend(SolverSpec(name, config, options, seed) for seed in seeds)
                 continue
             specs.append(SolverSpec(name, config))
             if "batch" in cls.OPTIONS:

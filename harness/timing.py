@@ -45,13 +45,17 @@ class Timing(NamedTuple):
 
 def time_call(
     fn: Callable[[], Any], *, warmup: int = 1, min_repeats: int = 5, max_repeats: int = 1000,
-    budget_s: float = 1.0,
+    budget_s: float = 1.0, slow_s: float = float("inf"),
 ) -> Timing:
     """Time `fn()` after `warmup` untimed calls: at least `min_repeats` calls, then more until
     `budget_s` seconds are spent or `max_repeats` are done. Each call is timed on its own with
-    `time.perf_counter`, so the statistics describe single calls, not a batch average."""
+    `time.perf_counter`, so the statistics describe single calls, not a batch average. A call whose
+    warm-up took more than `slow_s` seconds is timed once (`repeats` says so)."""
     for _ in range(warmup):
+        start = time.perf_counter()
         fn()
+        if time.perf_counter() - start > slow_s:
+            min_repeats = max_repeats = 1
     samples: list[float] = []
     spent = 0.0
     while len(samples) < min_repeats or (spent < budget_s and len(samples) < max_repeats):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -13,7 +14,7 @@ from harness.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.report import write_report
 from harness.runner import run_suites
-from harness.runs import Settings, SolverSpec, default_specs
+from harness.runs import QUICK, SolverSpec, default_specs
 from harness.store import RowStore, atomic_write
 from harness.timing import time_call
 from solvers.base import AbstractSolver, SolveError
@@ -44,8 +45,8 @@ def with_exploding(monkeypatch):
 def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_path, with_exploding):
     store = RowStore(tmp_path)
     specs = [SolverSpec("exploding"), SolverSpec("not-installed"), SolverSpec("casadi-cvodes")]
-    run_suites(specs, [SMIB_INFERENCE], ["accuracy", "latency"],
-               Settings(quick=True, latency_budget_s=0.01, min_repeats=2), store)
+    settings = replace(QUICK, cache_dir=None, throughput_sizes=(1,), t1_values_s=(10.0,))
+    run_suites(specs, [SMIB_INFERENCE], ["accuracy", "latency"], settings, store, progress=False)
     df = store.frame()
     status = df.groupby(["solver", "suite"])["status"].first()
     assert status["exploding", "fit"] == "ok"
@@ -57,7 +58,7 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert accuracy.loc[("delta", "reference"), "rel_l2"] < 1e-2
     assert accuracy.loc[("delta", "paper ode45 data"), "max_abs"] < 1e-2
     latency = ok[ok.suite == "latency"]
-    assert set(latency["query"]) == {"grid 100x201", "one trajectory (201 points)", "single point t1=10 s"}
+    assert set(latency["query"]) == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s"}
     assert (latency["median_s"] > 0).all()
 
     markdown = write_report(store.rows(), tmp_path, {"threads": 2})
@@ -99,7 +100,7 @@ def test_time_call_counts_repeats():
 
 def test_cli_run_and_report(tmp_path, capsys):
     out = tmp_path / "results"
-    assert main(["run", "--quick", "--quiet", "--solver", "casadi-cvodes", "--config", "default",
+    assert main(["run", "--quick", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
                  "--suite", "accuracy", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "casadi-cvodes [default]" in printed

@@ -1,0 +1,35 @@
+"""Work-precision: error on the 100 x 201 grid against the time of one warm grid query."""
+
+from __future__ import annotations
+
+from harness import metrics
+from harness.cases import Case, standard_grid
+from harness.reference import reference
+from harness.runs import Settings
+from harness.timing import time_call
+from solvers.base import AbstractSolver
+
+
+def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
+    t, P1 = standard_grid(case)
+    ref_delta, ref_omega = reference(case, t, P1)
+    traj = solver.solve(t, P1)
+    timing = time_call(lambda: solver.solve(t, P1), min_repeats=settings.min_repeats,
+                       budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
+    return {"rel_l2_delta": metrics.rel_l2(traj.delta, ref_delta),
+            "rel_l2_omega": metrics.rel_l2(traj.omega, ref_omega),
+            "median_s": timing.median_s, "q25_s": timing.q25_s, "q75_s": timing.q75_s,
+            "repeats": timing.repeats}
+
+
+def work_precision(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+    """An ODE solver (an adapter with an `rtol` option) gives a curve: one point per rtol of
+    `settings.wp_rtols` (atol = rtol * 1e-3); any other adapter gives its own point."""
+    if "rtol" not in solver.OPTIONS:
+        return [{"rtol": float("nan"), "atol": float("nan"), **_point(solver, case, settings)}]
+    rows = []
+    for rtol in settings.wp_rtols:
+        tuned = type(solver)(case, solver.config, **{**solver.options, "rtol": rtol, "atol": rtol * 1e-3})
+        tuned.fit()
+        rows.append({"rtol": rtol, "atol": rtol * 1e-3, **_point(tuned, case, settings)})
+    return rows
