@@ -18,6 +18,7 @@ __all__ = ["SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers", "
 # name -> (module, class, the optional package it needs)
 _ADAPTERS = {
     "scipy-rk45": ("solvers.scipy_rk45", "ScipyRK45", "scipy"),
+    "scipy-odeint": ("solvers.scipy_odeint", "ScipyOdeint", "scipy"),
     "casadi-cvodes": ("solvers.casadi_cvodes", "CasadiCVODES", "casadi"),
 }
 

@@ -10,7 +10,7 @@ import numpy as np
 from harness.cases import Observations
 from harness.model import accelerations, smib_system
 from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares
+from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares, run_batch
 
 try:
     import casadi as ca
@@ -84,14 +84,7 @@ class CasadiCVODES(AbstractSolver):
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         times, order = np.unique(t, return_inverse=True)
-        try:
-            y = self._states(times, P1, self.case.m, self.case.d)
-        except SolveError:
-            if P1.size == 1:
-                raise
-            for p1 in P1:  # name the trajectory that fails: rerun one at a time
-                self._states(times, np.array([p1]), self.case.m, self.case.d)
-            raise
+        y = run_batch(lambda p1: self._states(times, p1, self.case.m, self.case.d), P1)
         return y[0][:, order], y[1][:, order]
 
     def _build_identifier(self, times: tuple[float, ...], n_p1: int):

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from harness.cases import Observations
+from harness.cases import Case, Observations
+from harness.model import SwingSystem, smib_system
+from solvers.base import SolveError
+
+T = TypeVar("T")
 
 __all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "identify_least_squares"]
 
@@ -18,6 +23,19 @@ TOLERANCE_CONFIGS = {
     "default": {"rtol": 1e-3, "atol": 1e-6},
     "tight": {"rtol": 1e-10, "atol": 1e-12},
 }
+
+
+def run_batch(run: Callable[[np.ndarray], T], P1: np.ndarray) -> T:
+    """`run(P1)` for the whole batch; if it raises SolveError, rerun one P1 at a time so that the
+    error names the trajectory that fails (costs time only on failure)."""
+    try:
+        return run(P1)
+    except SolveError:
+        if P1.size == 1:
+            raise
+        for p1 in P1:
+            run(P1[P1 == p1][:1])
+        raise
 
 
 class ObservationLayout(NamedTuple):
@@ -93,3 +111,19 @@ def identify_least_squares(
     )
     m, d = np.exp(result.x)
     return float(m), float(d), n_sim, bool(result.success), str(result.message)
+
+
+def identify_by_simulation(
+    integrate: Callable[[SwingSystem, np.ndarray, np.ndarray], np.ndarray], case: Case,
+    obs: Observations, m_bounds: tuple[float, float], d_bounds: tuple[float, float],
+) -> tuple[float, float, int, bool, str]:
+    """`identify_least_squares` around `integrate(system, t, P1)` -> states (2, len(P1), len(t)) at
+    sorted unique times: the case's system with trial (m, d), Jacobian by finite differences."""
+    layout = ObservationLayout.of(obs)
+    system = smib_system(case)
+
+    def simulate(m: float, d: float, with_jacobian: bool):
+        y = integrate(dataclasses.replace(system, m=(m,), d=(d,)), layout.t, layout.P1)
+        return y[0], y[1], None, None
+
+    return identify_least_squares(simulate, obs, layout, m_bounds, d_bounds, analytic_jacobian=False)

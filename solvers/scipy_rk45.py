@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, ClassVar
 
 import numpy as np
@@ -11,7 +10,7 @@ from scipy.integrate import solve_ivp
 from harness.cases import Observations
 from harness.model import SwingSystem, accelerations, smib_system
 from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares
+from solvers.classical import TOLERANCE_CONFIGS, identify_by_simulation
 
 
 def _rhs(t: float, y: np.ndarray, system: SwingSystem, P: np.ndarray) -> np.ndarray:
@@ -70,14 +69,6 @@ class ScipyRK45(AbstractSolver):
         return y[0][:, order], y[1][:, order]
 
     def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
-        layout = ObservationLayout.of(obs)
-        system = smib_system(self.case)
-
-        def simulate(m: float, d: float, with_jacobian: bool):
-            y = self._integrate(dataclasses.replace(system, m=(m,), d=(d,)), layout.t, layout.P1)
-            return y[0], y[1], None, None
-
-        return identify_least_squares(
-            simulate, obs, layout, self.options["m_bounds"], self.options["d_bounds"],
-            analytic_jacobian=False,
+        return identify_by_simulation(
+            self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"]
         )

@@ -11,7 +11,7 @@ from harness.reference import SEED_DIR, load_seed_reference, reference
 from solvers import make_solver
 from solvers.base import SolveError
 
-CLASSICAL = ("scipy-rk45", "casadi-cvodes")
+CLASSICAL = ("scipy-rk45", "scipy-odeint", "casadi-cvodes")
 
 
 @pytest.mark.parametrize("name", CLASSICAL)
