@@ -1,4 +1,8 @@
-"""Rows -> tidy CSV per suite, Markdown tables, run metadata. Nothing here measures anything."""
+"""Rows -> tidy CSV per suite, Markdown and LaTeX tables, plots, results/README.md.
+
+Nothing here measures anything: every figure comes from the rows of one run, so `swingbench
+report DIR` re-renders the same tables and plots from `DIR/rows.jsonl`.
+"""
 
 from __future__ import annotations
 
@@ -10,13 +14,17 @@ import platform
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from harness.analysis import break_even, fmt, fmt_range, label, matched_speedups, ok, trained
+from harness.paper import paper_table
 from harness.store import atomic_write
 
-__all__ = ["markdown_tables", "metadata", "write_report"]
+__all__ = ["build_tables", "metadata", "write_report"]
 
 LIBRARIES = ("numpy", "scipy", "pandas", "casadi", "torch", "jax", "jaxlib", "optax")
+TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref")
 
 
 def _cpu() -> str:
@@ -37,11 +45,12 @@ def metadata(threads: int) -> dict:
             versions[lib] = importlib.metadata.version(lib)
         except importlib.metadata.PackageNotFoundError:
             versions[lib] = "not installed"
+    here = Path(__file__).parent
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=Path(__file__).parent, check=True).stdout.strip()
+                                cwd=here, check=True).stdout.strip()
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=Path(__file__).parent, check=False).stdout.strip()
+                               text=True, cwd=here, check=False).stdout.strip()
         commit += "+dirty" if dirty else ""
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
@@ -53,78 +62,216 @@ def metadata(threads: int) -> dict:
     }
 
 
-def _label(df: pd.DataFrame) -> pd.Series:
-    variant = df["variant"].fillna("").map(lambda v: f", {v}" if v else "")
-    return df["solver"] + " [" + df["config"] + variant + "]"
+# ---------------------------------------------------------------------------------------------
+# one function per table: frames by suite -> DataFrame ready to print
+
+def _fit_table(frames: dict) -> pd.DataFrame:
+    df = ok(frames.get("fit"))
+    if df.empty:
+        return df
+    df = df.assign(label=label(df))
+    rows = []
+    for name, g in df.groupby("label", sort=False):
+        rows.append({"case": g["case"].iloc[0], "solver": name, "seeds": int(trained(g).sum()) or "-",
+                     "fit / build (s)": fmt_range(g["fit_s"]),
+                     "iterations": fmt_range(g["iterations"].astype(float)) if trained(g).any() else "-",
+                     "final loss": fmt_range(g["loss"]) if trained(g).any() else "-",
+                     "from cache": "yes" if g["message"].fillna("").str.contains("cached").all() else "no"})
+    return pd.DataFrame(rows)
 
 
-def _status_table(df: pd.DataFrame) -> pd.DataFrame:
-    bad = df[df["status"] != "ok"]
-    return bad.assign(solver=_label(bad))[["case", "solver", "status"]].drop_duplicates()
+def _accuracy_table(frames: dict) -> pd.DataFrame:
+    df = ok(frames.get("accuracy"))
+    if df.empty:
+        return df
+    df = df.assign(label=label(df))
+    rows = []
+    for (case, name), g in df.groupby(["case", "label"], sort=False):
+        row = {"case": case, "solver": name}
+        for quantity, against, title in (("delta", "reference", "delta"), ("omega", "reference", "omega"),
+                                         ("delta", "paper ode45 data", "delta vs paper data")):
+            sel = g[(g["quantity"] == quantity) & (g["against"] == against)]
+            if sel.empty:
+                continue
+            row[f"{title} rel. L2"] = fmt_range(sel["rel_l2"])
+            row[f"{title} max abs"] = fmt_range(sel["max_abs"])
+            if against == "reference":
+                row[f"{title} worst trajectory rel. L2"] = fmt_range(sel["worst_trajectory_rel_l2"])
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
-def _fit_table(df: pd.DataFrame) -> pd.DataFrame:
-    ok = df[df["status"] == "ok"]
-    return ok.assign(solver=_label(ok)).reindex(columns=["case", "solver", "fit_s", "iterations", "loss"]).rename(
-        columns={"fit_s": "fit / build (s)", "iterations": "iterations", "loss": "final loss"})
-
-
-def _accuracy_table(df: pd.DataFrame) -> pd.DataFrame:
-    ok = df[df["status"] == "ok"].assign(solver=_label(df[df["status"] == "ok"]))
-    ok = ok.assign(column=ok["quantity"] + " vs " + ok["against"])
-    wide = ok.pivot_table(index=["case", "solver"], columns="column", values=["rel_l2", "max_abs"],
-                          aggfunc="first", sort=False)
-    wide.columns = [f"{col} {'rel. L2' if stat == 'rel_l2' else 'max abs'}" for stat, col in wide.columns]
-    order = sorted(wide.columns, key=lambda c: ("omega" in c, "paper" in c, "max" in c))
-    return wide[order].reset_index()
-
-
-def _latency_table(df: pd.DataFrame) -> pd.DataFrame:
-    ok = df[df["status"] == "ok"].assign(solver=_label(df[df["status"] == "ok"]))
-    ok = ok.assign(cell=ok.apply(lambda r: f"{r.median_s * 1e3:.3g} [{r.q25_s * 1e3:.3g}, {r.q75_s * 1e3:.3g}]",
-                                 axis=1))
-    wide = ok.pivot_table(index=["case", "solver"], columns="query", values="cell", aggfunc="first", sort=False)
+def _latency_table(frames: dict) -> pd.DataFrame:
+    df = frames.get("latency")
+    if df is None or df.empty or "query" not in df:
+        return pd.DataFrame()
+    df = df[df["query"].notna()].assign(label=label(df[df["query"].notna()]))
+    cell = np.where(df["status"] == "ok", (df["median_s"] * 1e3).map(fmt), df["status"].str.replace("skipped: ", ""))
+    wide = df.assign(cell=cell).pivot_table(index=["case", "label"], columns="query", values="cell",
+                                            aggfunc="first", sort=False)
     wide.columns = [f"{c} (ms)" for c in wide.columns]
-    return wide.reset_index()
+    return wide.reset_index().rename(columns={"label": "solver"})
+
+
+def _identification_table(frames: dict) -> pd.DataFrame:
+    df = ok(frames.get("identification"))
+    if df.empty or "m_rel_error" not in df:
+        return pd.DataFrame()
+    df = df.assign(label=label(df))
+    rows = []
+    for (name, noise), g in df.groupby(["label", "noise"], sort=False):
+        rows.append({"solver": name, "noise": f"{noise:.0%}", "pairs": g["pair"].nunique(),
+                     "m error mean (%)": fmt(100 * g["m_rel_error"].mean()),
+                     "m error worst (%)": fmt(100 * g["m_rel_error"].max()),
+                     "d error mean (%)": fmt(100 * g["d_rel_error"].mean()),
+                     "d error worst (%)": fmt(100 * g["d_rel_error"].max()),
+                     "time median (s)": fmt(g["identify_s"].median())})
+    return pd.DataFrame(rows)
+
+
+def _matched_table(frames: dict) -> pd.DataFrame:
+    speed = matched_speedups(frames.get("work_precision"))
+    if speed.empty:
+        return speed
+    rows = []
+    for (pinn, seed), g in speed.groupby(["pinn", "seed"], sort=False):
+        reached = g[g["match"] != "not reached"]
+        best = reached.loc[reached["classical_query_s"].idxmin()] if not reached.empty else None
+        rows.append({
+            "PINN": pinn, "seed": seed, "PINN delta rel. L2": fmt(g["pinn_rel_l2_delta"].iloc[0]),
+            "PINN grid query (ms)": fmt(1e3 * g["pinn_query_s"].iloc[0]),
+            "fastest classical at that accuracy": "none" if best is None else best["classical"],
+            "its time (ms)": "n/a" if best is None else
+            ("<= " if best["match"] == "at most" else "") + fmt(1e3 * best["classical_query_s"]),
+            "PINN speed-up": "n/a" if best is None else
+            ("<= " if best["match"] == "at most" else "") + fmt(best["speedup"]) + "x",
+        })
+    return pd.DataFrame(rows)
+
+
+def fastest_classical(frames: dict, query: str, max_rel_l2: float) -> tuple[str, float] | None:
+    """The fastest classical spec for `query` among those whose delta rel. L2 (accuracy suite) is
+    at most `max_rel_l2`: (label, median seconds), or None."""
+    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if acc.empty or lat.empty:
+        return None
+    acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & ~trained(acc)]
+    good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
+    lat = lat[(lat["query"] == query) & ~trained(lat)]
+    lat = lat.assign(label=label(lat))
+    lat = lat[lat["label"].isin(good)]
+    if lat.empty:
+        return None
+    best = lat.loc[lat["median_s"].idxmin()]
+    return best["label"], float(best["median_s"])
+
+
+def _break_even_table(frames: dict) -> pd.DataFrame:
+    fit, acc, lat = ok(frames.get("fit")), ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if fit.empty or acc.empty or lat.empty:
+        return pd.DataFrame()
+    fit, lat = fit[trained(fit)], lat[trained(lat)]
+    acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & trained(acc)]
+    rows = []
+    for query in ("grid 100x201", "single point t1=10 s"):
+        for _, q in lat[lat["query"] == query].iterrows():
+            name = label(q.to_frame().T).iloc[0]
+            fit_s = fit[label(fit) == name]["fit_s"].median()
+            error = acc[label(acc) == name]["rel_l2"].median()
+            best = fastest_classical(frames, query, error)
+            n_star = break_even(fit_s, best[1], q["median_s"]) if best else float("nan")
+            rows.append({"PINN": name, "query": query, "training (s)": fmt(fit_s), "delta rel. L2": fmt(error),
+                         "PINN query (ms)": fmt(1e3 * q["median_s"]),
+                         "fastest classical at least as accurate": best[0] if best else "none",
+                         "its query (ms)": fmt(1e3 * best[1]) if best else "n/a",
+                         "break-even N* (queries)": "never" if n_star == float("inf") else
+                         ("n/a" if np.isnan(n_star) else f"{n_star:,.0f}")})
+    return pd.DataFrame(rows)
+
+
+def _status_table(frames: dict) -> pd.DataFrame:
+    everything = pd.concat([df for df in frames.values() if not df.empty], ignore_index=True) if frames else None
+    if everything is None or everything.empty:
+        return pd.DataFrame()
+    bad = everything[everything["status"] != "ok"]
+    bad = bad.assign(solver=label(bad))
+    return bad[["suite", "case", "solver", "status"]].drop_duplicates()
 
 
 TABLES = {
-    "fit": ("Preparation cost (untimed in queries): build, JIT, training", _fit_table),
-    "accuracy": ("Accuracy on the 100 x 201 grid (delta in rad, omega in rad/s)", _accuracy_table),
-    "latency": ("Warm query latency, median [25th, 75th percentile] of repeats, delta and omega", _latency_table),
+    "paper": ("The paper's figures beside ours (same machine, same run)", paper_table),
+    "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
+                  "(median [min, max] over seeds for PINNs)"), _accuracy_table),
+    "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
+                 "delta accuracy (interpolated on its tolerance sweep)"), _matched_table),
+    "break_even": ("Cost of training: queries needed before a PINN pays off", _break_even_table),
+    "latency": ("Warm query latency (median of repeats, ms), delta and omega", _latency_table),
+    "identification": ("Identification of m and d from N_u = 100 samples", _identification_table),
+    "fit": ("Preparation cost, apart from queries: build, JIT, training", _fit_table),
+    "status": ("Skipped or failed", _status_table),
 }
 
 
-def markdown_tables(frames: dict[str, pd.DataFrame]) -> str:
-    """The Markdown of every known suite present in `frames`, plus any skipped/failed rows."""
-    parts = []
-    for suite, (title, build) in TABLES.items():
-        df = frames.get(suite)
-        if df is None or df.empty or not (df["status"] == "ok").any():
-            continue
-        parts.append(f"### {title}\n\n{build(df).to_markdown(index=False, floatfmt='.3g')}\n")
-    everything = pd.concat(list(frames.values()), ignore_index=True) if frames else pd.DataFrame()
-    if not everything.empty:
-        bad = _status_table(everything)
-        if not bad.empty:
-            parts.append(f"### Skipped or failed\n\n{bad.to_markdown(index=False)}\n")
-    return "\n".join(parts)
-
-
-def write_report(rows: list[dict], out_dir: Path, meta: dict) -> str:
-    """Write `<suite>.csv` (tidy, one row per measurement), `tables.md` and `metadata.json` to
-    `out_dir`, each atomically; return the Markdown."""
-    out_dir = Path(out_dir)
+def suite_frames(rows: list[dict]) -> dict[str, pd.DataFrame]:
     frame = pd.DataFrame(rows)
-    frames = {suite: group.dropna(axis=1, how="all").reset_index(drop=True)
-              for suite, group in frame.groupby("suite", sort=False)} if not frame.empty else {}
-    for suite, df in frames.items():
-        atomic_write(out_dir / f"{suite}.csv", df.to_csv(index=False))
+    if frame.empty:
+        return {}
+    return {suite: g.dropna(axis=1, how="all").reset_index(drop=True)
+            for suite, g in frame.groupby("suite", sort=False)}
+
+
+def build_tables(frames: dict[str, pd.DataFrame]) -> dict[str, tuple[str, pd.DataFrame]]:
+    """name -> (title, table) for every table that has content."""
+    out = {}
+    for name, (title, build) in TABLES.items():
+        table = build(frames)
+        if table is not None and not table.empty:
+            out[name] = (title, table)
+    return out
+
+
+def _header(meta: dict) -> str:
     get = lambda key: meta.get(key, "?")
-    header = (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}; "
-              f"numpy {get('version_numpy')}, scipy {get('version_scipy')}, casadi {get('version_casadi')}, "
-              f"torch {get('version_torch')}, jax {get('version_jax')}.\n\n")
-    markdown = header + markdown_tables(frames)
+    return (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}, "
+            f"settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
+            f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}.\n\n")
+
+
+def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
+    """Write `<suite>.csv` (tidy, one row per measurement), `tables.md`, `tables.tex`, the plots,
+    `README.md` and `metadata.json` to `out_dir`, each atomically; return the Markdown."""
+    out_dir = Path(out_dir)
+    frames = suite_frames(rows)
+    for suite, df in frames.items():
+        csv = df.drop(columns=[c for c in TRAJECTORY_COLUMNS if c in df])
+        atomic_write(out_dir / f"{suite}.csv", csv.to_csv(index=False))
+    tables = build_tables(frames)
+    markdown = _header(meta) + "\n".join(
+        f"### {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables.values())
+    latex = "\n".join(f"% {title}\n{table.to_latex(index=False, escape=True)}" for title, table in tables.values())
     atomic_write(out_dir / "tables.md", markdown)
-    atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2))
+    atomic_write(out_dir / "tables.tex", latex)
+    atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
+    figures = []
+    if plots:
+        from harness.plots import make_plots
+
+        figures = make_plots(frames, out_dir)
+    atomic_write(out_dir / "README.md", _results_readme(meta, frames, tables, figures))
     return markdown
+
+
+def _results_readme(meta: dict, frames: dict, tables: dict, figures: list[str]) -> str:
+    lines = ["# swingbench results", "",
+             "Generated by `swingbench run` (re-render with `swingbench report DIR`); do not edit by hand.",
+             "", "## Run", ""]
+    lines += [f"- {key}: {value}" for key, value in meta.items()]
+    lines += ["", "## Files", "",
+              "- `rows.jsonl`: every row as measured (the source of everything else)",
+              *(f"- `{suite}.csv`: tidy rows of the {suite} suite" for suite in frames),
+              "- `tables.md`, `tables.tex`: the tables below, Markdown and LaTeX",
+              *(f"- `{name}.png`, `{name}.pdf`" for name in figures),
+              "", "## Tables", "", *(f"### {title}\n\n{table.to_markdown(index=False)}\n"
+                                      for title, table in tables.values())]
+    lines += [f"![{name}]({name}.png)" for name in figures]
+    return "\n".join(lines) + "\n"

@@ -126,3 +126,48 @@ def test_cli_help(capsys):
         main(["run", "--help"])
     assert info.value.code == 0
     assert "--quick" in capsys.readouterr().out
+
+
+def test_time_at_accuracy_interpolates_on_the_pareto_front():
+    from harness.analysis import break_even, pareto_front, time_at_accuracy
+
+    errors = np.array([1e-3, 1e-5, 1e-7, 1e-6])
+    seconds = np.array([0.01, 0.1, 1.0, 2.0])  # the last point is dominated by 1e-7 in 1.0 s
+    e, t = pareto_front(errors, seconds)
+    np.testing.assert_array_equal(e, [1e-7, 1e-5, 1e-3])
+    np.testing.assert_array_equal(t, [1.0, 0.1, 0.01])
+    assert time_at_accuracy(errors, seconds, 1e-4) == (pytest.approx(np.sqrt(0.1 * 0.01)), "interpolated")
+    assert time_at_accuracy(errors, seconds, 1e-2) == (0.01, "at most")
+    assert np.isnan(time_at_accuracy(errors, seconds, 1e-9)[0])
+    assert break_even(10.0, 0.5, 0.1) == pytest.approx(25.0)
+    assert break_even(10.0, 0.1, 0.5) == float("inf")
+
+
+def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
+    """Synthetic rows (no measurement): the report's verdicts follow the numbers."""
+    base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
+    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0}
+    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1}
+    rows = [
+        {"suite": "fit", **pinn, "fit_s": 50.0, "iterations": 100, "loss": 1e-6, "message": ""},
+        {"suite": "fit", **ode, "fit_s": 1e-5, "iterations": 0, "loss": np.nan, "message": ""},
+        {"suite": "accuracy", **pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-3, "max_abs": 1e-3,
+         "worst_trajectory_rel_l2": 2e-3},
+        {"suite": "accuracy", **ode, "quantity": "delta", "against": "reference", "rel_l2": 1e-4, "max_abs": 1e-4,
+         "worst_trajectory_rel_l2": 2e-4},
+        {"suite": "latency", **pinn, "kind": "grid", "query": "grid 100x201", "median_s": 0.002, "q25_s": 0.002,
+         "q75_s": 0.002, "min_s": 0.002, "repeats": 5},
+        {"suite": "latency", **ode, "kind": "grid", "query": "grid 100x201", "median_s": 0.004, "q25_s": 0.004,
+         "q75_s": 0.004, "min_s": 0.004, "repeats": 5},
+        {"suite": "work_precision", **pinn, "rel_l2_delta": 1e-3, "median_s": 0.002},
+        *({"suite": "work_precision", **ode, "rtol": r, "rel_l2_delta": e, "median_s": s}
+          for r, e, s in ((1e-3, 1e-2, 0.001), (1e-6, 1e-5, 0.004))),
+    ]
+    markdown = write_report(rows, tmp_path, {"threads": 2}, plots=True)
+    # PINN query 2 ms vs 4 ms classical at least as accurate: N* = 50 / (0.004 - 0.002) = 25,000
+    assert "25,000" in markdown
+    # on the work-precision curve the classical time at 1e-3 is 4 ms * 4^(-2/3) = 1.59 ms: 0.794x
+    assert "0.794x" in markdown
+    assert "toy-pinn [default]" in markdown and "scipy-odeint [default]" in markdown
+    assert (tmp_path / "work_precision.png").exists() and (tmp_path / "tables.tex").exists()
+    assert "![work_precision](work_precision.png)" in (tmp_path / "README.md").read_text()

@@ -11,14 +11,23 @@ from harness.runs import Settings
 from solvers.base import AbstractSolver
 
 
-def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray) -> dict:
+def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
+            P1: np.ndarray | None = None) -> dict:
+    """Errors of `pred` against `ref` (n_P1, n_t); with `P1`, also the best and worst trajectory
+    themselves (lists, for the paper's figure 3; the CSV leaves them out, rows.jsonl keeps them)."""
     per_trajectory = metrics.rel_l2_per_row(pred, ref)
-    return {
+    best, worst = int(per_trajectory.argmin()), int(per_trajectory.argmax())
+    row = {
         "quantity": quantity, "against": against, "unit": unit,
         "rel_l2": metrics.rel_l2(pred, ref), "max_abs": metrics.max_abs(pred, ref),
-        "best_trajectory_rel_l2": float(per_trajectory.min()),
-        "worst_trajectory_rel_l2": float(per_trajectory.max()),
+        "best_trajectory_rel_l2": float(per_trajectory[best]),
+        "worst_trajectory_rel_l2": float(per_trajectory[worst]),
     }
+    if P1 is not None:
+        row.update(best_P1=float(P1[best]), worst_P1=float(P1[worst]),
+                   best_pred=pred[best].tolist(), best_ref=ref[best].tolist(),
+                   worst_pred=pred[worst].tolist(), worst_ref=ref[worst].tolist())
+    return row
 
 
 def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
@@ -29,8 +38,8 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
     traj = solver.solve(t, P1)
     ref_delta, ref_omega = reference(case, t, P1)
     rows = [
-        _errors("delta", "reference", "rad", traj.delta, ref_delta),
-        _errors("omega", "reference", "rad/s", traj.omega, ref_omega),
+        _errors("delta", "reference", "rad", traj.delta, ref_delta, P1),
+        _errors("omega", "reference", "rad/s", traj.omega, ref_omega, P1),
     ]
     seed = seed_reference(case)
     if seed is not None:

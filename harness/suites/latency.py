@@ -14,12 +14,14 @@ T1_S = 10.0  # the paper's single-time-point query (its 87x claim)
 
 def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     """(kind, name, t_query, P1): the 100 x 201 grid; `throughput_sizes` trajectories of 201 times
-    (P1 evenly spaced over the case's range); delta and omega at each t1 in `t1_values_s` for the
+    (P1 evenly spaced over the case's range; the size of the grid is the grid); delta and omega at each t1 in `t1_values_s` for the
     middle P1."""
     t, P1 = standard_grid(case)
     mid = P1[P1.size // 2: P1.size // 2 + 1]
     out = [("grid", f"grid {P1.size}x{t.size}", t, P1)]
     for n in settings.throughput_sizes:
+        if n == P1.size:  # the grid itself
+            continue
         p = mid if n == 1 else np.linspace(case.p1_min, case.p1_max, n)
         out.append(("throughput", f"{n} trajectories x {t.size} times", t, p))
     for t1 in settings.t1_values_s:

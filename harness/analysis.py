@@ -1,0 +1,115 @@
+"""Derived comparisons from the rows of a run: pure pandas/numpy, no measurement, no I/O.
+
+Classical adapters are the rows with seed == -1; trained adapters (PINNs) have seed >= 0. Every
+comparison is between rows of the same run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "break_even",
+    "fmt",
+    "fmt_range",
+    "label",
+    "matched_speedups",
+    "ok",
+    "pareto_front",
+    "seed_summary",
+    "time_at_accuracy",
+    "trained",
+]
+
+
+def ok(df: pd.DataFrame | None) -> pd.DataFrame:
+    """Rows with status "ok" (an empty frame when there are none)."""
+    if df is None or df.empty or "status" not in df:
+        return pd.DataFrame()
+    return df[df["status"] == "ok"].copy()
+
+
+def label(df: pd.DataFrame) -> pd.Series:
+    """"solver [config, variant]": the spec without its seed, the unit seeds are summarised over."""
+    variant = df["variant"].fillna("").astype(str).map(lambda v: f", {v}" if v else "")
+    return df["solver"] + " [" + df["config"] + variant + "]"
+
+
+def trained(df: pd.DataFrame) -> pd.Series:
+    return df["seed"].fillna(-1).astype(int) >= 0
+
+
+def fmt(x: float, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "n/a"
+    return f"{x:.{digits}g}"
+
+
+def fmt_range(values: pd.Series) -> str:
+    """"median" or "median [min, max]" over seeds."""
+    values = values.dropna()
+    if values.empty:
+        return "n/a"
+    if values.size == 1:
+        return fmt(values.iloc[0])
+    return f"{fmt(values.median())} [{fmt(values.min())}, {fmt(values.max())}] (n={values.size})"
+
+
+def seed_summary(df: pd.DataFrame, column: str) -> pd.DataFrame:
+    """Median, min, max and count of `column` per spec label, over seeds."""
+    frame = df.assign(label=label(df))
+    return frame.groupby("label", sort=False)[column].agg(["median", "min", "max", "count"])
+
+
+def pareto_front(errors: np.ndarray, seconds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points of an error-time curve that no other point beats in both; sorted by error."""
+    order = np.argsort(errors)
+    front_e, front_t = [], []
+    for e, t in zip(errors[order], seconds[order]):
+        if not front_t or t < front_t[-1]:
+            front_e.append(e)
+            front_t.append(t)
+    return np.array(front_e), np.array(front_t)
+
+
+def time_at_accuracy(errors: np.ndarray, seconds: np.ndarray, target: float) -> tuple[float, str]:
+    """Time for a classical curve to reach error <= `target`, log-log interpolated on its Pareto
+    front. Returns (seconds, how): how is "interpolated"; "at most" when even the loosest
+    tolerance is more accurate than `target` (its time is then an upper bound); "not reached"
+    (NaN) when the tightest tolerance is still less accurate."""
+    e, t = pareto_front(np.asarray(errors, float), np.asarray(seconds, float))
+    if e.size == 0 or target < e[0]:
+        return float("nan"), "not reached"
+    if target >= e[-1]:
+        return float(t[-1]), "at most"
+    return float(np.exp(np.interp(np.log(target), np.log(e), np.log(t)))), "interpolated"
+
+
+def matched_speedups(work_precision: pd.DataFrame) -> pd.DataFrame:
+    """For each trained point (PINN) and each classical curve of the work-precision rows: the
+    classical time at the PINN's delta error and the speed-up of the PINN (> 1: the PINN is faster)."""
+    wp = ok(work_precision)
+    if wp.empty:
+        return pd.DataFrame()
+    wp = wp.assign(label=label(wp))
+    points = wp[trained(wp)]
+    curves = {name: g for name, g in wp[~trained(wp)].groupby("label", sort=False)}
+    rows = []
+    for _, p in points.iterrows():
+        for name, curve in curves.items():
+            seconds, how = time_at_accuracy(curve["rel_l2_delta"].to_numpy(), curve["median_s"].to_numpy(),
+                                            p["rel_l2_delta"])
+            rows.append({"pinn": p["label"], "seed": p["seed"], "pinn_rel_l2_delta": p["rel_l2_delta"],
+                         "pinn_query_s": p["median_s"], "classical": name, "classical_query_s": seconds,
+                         "match": how, "speedup": seconds / p["median_s"]})
+    return pd.DataFrame(rows)
+
+
+def break_even(fit_s: float, classical_s: float, pinn_s: float) -> float:
+    """Queries N* after which training pays off: fit / (classical - pinn) query time; inf (never)
+    when the PINN is not faster per query."""
+    gain = classical_s - pinn_s
+    return fit_s / gain if gain > 0 else float("inf")

@@ -1,0 +1,167 @@
+"""The paper reproduction table: each figure of Misyris et al. (2020) beside ours, from one run."""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from harness.analysis import fmt, label, ok, trained
+
+__all__ = ["PAPER", "paper_table"]
+
+# The paper's figures (PESGM 2020): forward error and training time (GPU), the two-output variant,
+# identification errors, and the speed claims against MATLAB ode45.
+PAPER = {
+    "forward_rel_l2": 1.34e-2, "forward_train_s": 223.0,
+    "two_outputs_delta": 9.43e-2, "two_outputs_omega": 1.51e-1,
+    "identify_m_pct": 0.74, "identify_d_pct": 1.28,
+    "grid_pinn_s": 0.016, "grid_ode45_s": 0.45, "point_pinn_s": 4e-3, "point_ode45_s": 0.35,
+}
+ODE45_LIKE = "scipy-rk45 [default]"  # one solve per trajectory at ode45's tolerances, as the paper timed
+GRID, POINT = "grid 100x201", "single point t1=10 s"
+
+
+def _delta_errors(frames: dict, quantity: str = "delta") -> pd.DataFrame:
+    acc = ok(frames.get("accuracy"))
+    if acc.empty:
+        return acc
+    acc = acc[(acc["quantity"] == quantity) & (acc["against"] == "reference")]
+    return acc.assign(label=label(acc))
+
+
+def _per_backend(df: pd.DataFrame, config: str, column: str) -> dict[str, float]:
+    """Median of `column` over seeds for each trained adapter in `config`."""
+    sel = df[trained(df) & (df["config"] == config)]
+    return sel.groupby("solver", sort=False)[column].median().to_dict()
+
+
+def _join(values: dict[str, str]) -> str:
+    return "; ".join(f"{k}: {v}" for k, v in values.items()) or "not run"
+
+
+def _latency(frames: dict, query: str) -> pd.DataFrame:
+    lat = ok(frames.get("latency"))
+    if lat.empty:
+        return lat
+    lat = lat[lat["query"] == query]
+    return lat.assign(label=label(lat))
+
+
+def _forward_rows(frames: dict) -> list[dict]:
+    delta, omega, fit = _delta_errors(frames), _delta_errors(frames, "omega"), ok(frames.get("fit"))
+    if delta.empty:
+        return []
+    fit_s = {c: _per_backend(fit, c, "fit_s") for c in ("paper", "default", "paper-two-outputs")} if not fit.empty else {}
+    cell = lambda config: _join({s: f"{fmt(e)} after {fmt(fit_s.get(config, {}).get(s, float('nan')))} s"
+                                 for s, e in _per_backend(delta, config, "rel_l2").items()})
+    classical = delta[~trained(delta)]
+    best = classical.loc[classical["rel_l2"].idxmin()] if not classical.empty else None
+    paper_errors = _per_backend(delta, "paper", "rel_l2")
+    ratio = {s: e / PAPER["forward_rel_l2"] for s, e in paper_errors.items()}
+    default_best = min(_per_backend(delta, "default", "rel_l2").values(), default=float("nan"))
+    shows = []
+    if ratio:
+        shows.append("paper setup " + ", ".join(
+            f"{s} {'within' if 1 / 3 <= r <= 3 else 'outside'} 3x of the paper ({fmt(r, 2)}x)" for s, r in ratio.items()))
+    if best is not None and not math.isnan(default_best):
+        shows.append(f"best classical is {fmt(default_best / best['rel_l2'], 2)}x more accurate than our best PINN")
+    rows = [{
+        "claim": "forward: rel. L2 of delta on 100 x 201, training time",
+        "paper": f"{PAPER['forward_rel_l2']} after {PAPER['forward_train_s']:g} s (GPU)",
+        "ours, paper config": cell("paper"), "ours, default": cell("default"),
+        "best classical": "n/a" if best is None else f"{best['label']}: {fmt(best['rel_l2'])}",
+        "what it shows": "; ".join(shows),
+    }]
+    two_d = _per_backend(delta, "paper-two-outputs", "rel_l2")
+    two_o = _per_backend(omega, "paper-two-outputs", "rel_l2")
+    best_o = omega[~trained(omega)]["rel_l2"].min() if not omega.empty else float("nan")
+    better = [s for s in two_d if two_d[s] < PAPER["two_outputs_delta"] and two_o.get(s, 1) < PAPER["two_outputs_omega"]]
+    rows.append({
+        "claim": "two outputs (delta, omega): rel. L2 of delta / omega",
+        "paper": f"{PAPER['two_outputs_delta']} / {PAPER['two_outputs_omega']} (N_f = 50,000, ~30 min)",
+        "ours, paper config": _join({s: f"{fmt(two_d[s])} / {fmt(two_o.get(s, float('nan')))}" for s in two_d}),
+        "ours, default": _join({s: f"{fmt(e)} / {fmt(_per_backend(omega, 'default', 'rel_l2').get(s, float('nan')))}"
+                                for s, e in _per_backend(delta, "default", "rel_l2").items()}),
+        "best classical": f"omega {fmt(best_o)}",
+        "what it shows": (f"better than the paper: {', '.join(better)}" if better else "not better than the paper")
+        if two_d else "not run",
+    })
+    return rows
+
+
+def _identification_row(frames: dict) -> list[dict]:
+    df = ok(frames.get("identification"))
+    if df.empty or "m_rel_error" not in df:
+        return []
+    df = df[df["noise"] == 0].assign(label=label(df[df["noise"] == 0]))
+
+    def cell(sel: pd.DataFrame) -> str:
+        return _join({name: f"{fmt(100 * g['m_rel_error'].mean())} % / {fmt(100 * g['d_rel_error'].mean())} % "
+                            f"in {fmt(g['identify_s'].median())} s" for name, g in sel.groupby("solver", sort=False)})
+
+    classical = df[~trained(df)]
+    best = None
+    if not classical.empty:
+        means = classical.groupby("label")[["m_rel_error", "d_rel_error"]].mean().max(axis=1)
+        best = means.idxmin()
+    b = classical[classical["label"] == best] if best else None
+    return [{
+        "claim": "identification, noise-free: mean error of m / d over the pairs, time",
+        "paper": f"{PAPER['identify_m_pct']} % / {PAPER['identify_d_pct']} % in < 60 s",
+        "ours, paper config": cell(df[trained(df) & (df["config"] == "paper")]),
+        "ours, default": cell(df[trained(df) & (df["config"] == "default")]),
+        "best classical": "n/a" if b is None else f"{best}: {fmt(100 * b['m_rel_error'].mean())} % / "
+                                                   f"{fmt(100 * b['d_rel_error'].mean())} % in {fmt(b['identify_s'].median())} s",
+        "what it shows": "errors are means over the (m, d) pairs run; see the identification table",
+    }]
+
+
+def _speed_row(frames: dict, query: str, claim: str, pinn_s: float, ode45_s: float) -> list[dict]:
+    lat, delta = _latency(frames, query), _delta_errors(frames)
+    if lat.empty:
+        return []
+    ode45 = lat[lat["label"] == ODE45_LIKE]["median_s"]
+    ode45_s_ours = float(ode45.iloc[0]) if not ode45.empty else float("nan")
+    classical = lat[~trained(lat)]
+
+    def cell(config: str) -> str:
+        out = {}
+        for s, t in _per_backend(lat, config, "median_s").items():
+            out[s] = f"{fmt(t)} s ({fmt(ode45_s_ours / t, 2)}x vs {ODE45_LIKE})"
+        return _join(out)
+
+    default = _per_backend(lat, "default", "median_s")
+    default_err = _per_backend(delta, "default", "rel_l2") if not delta.empty else {}
+    shows = []
+    for s, t in default.items():
+        err = default_err.get(s, float("nan"))
+        accurate = set(delta[~trained(delta) & (delta["rel_l2"] <= err)]["label"]) if not delta.empty else set()
+        rivals = classical[classical["label"].isin(accurate)]
+        if rivals.empty:
+            shows.append(f"{s} default: no classical run as accurate ({fmt(err)})")
+            continue
+        best = rivals.loc[rivals["median_s"].idxmin()]
+        ratio = best["median_s"] / t
+        verdict = f"{s} default {fmt(ratio, 2)}x faster" if ratio > 1 else f"classical wins: {best['label']} is {fmt(1 / ratio, 2)}x faster"
+        shows.append(f"{verdict} than the fastest classical at >= its accuracy ({best['label']}, {fmt(best['median_s'])} s)")
+    fastest = classical.loc[classical["median_s"].idxmin()] if not classical.empty else None
+    return [{
+        "claim": claim,
+        "paper": f"{pinn_s:g} s vs {ode45_s:g} s ode45 ({ode45_s / pinn_s:.0f}x)",
+        "ours, paper config": cell("paper"), "ours, default": cell("default"),
+        "best classical": "n/a" if fastest is None else f"fastest: {fastest['label']} {fmt(fastest['median_s'])} s; "
+                                                         f"ode45-like: {fmt(ode45_s_ours)} s",
+        "what it shows": "; ".join(shows),
+    }]
+
+
+def paper_table(frames: dict) -> pd.DataFrame:
+    """One row per figure of the paper: the paper's value, ours for the `paper` and `default`
+    PINN configurations, the best classical solver, and what the comparison shows."""
+    rows = _forward_rows(frames) + _identification_row(frames)
+    rows += _speed_row(frames, GRID, "100 trajectories, delta and omega on 100 x 201, warm",
+                       PAPER["grid_pinn_s"], PAPER["grid_ode45_s"])
+    rows += _speed_row(frames, POINT, "delta at one time t1 = 10 s, one P1, warm",
+                       PAPER["point_pinn_s"], PAPER["point_ode45_s"])
+    return pd.DataFrame(rows)

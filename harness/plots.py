@@ -1,0 +1,144 @@
+"""Plots of a run (PNG and PDF): the paper's figure 3, work-precision, latency against t1,
+identification error per pair. Each function takes the suite frames and returns a figure or None."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from harness.analysis import label, ok, trained
+from harness.cases import CASES, standard_grid
+
+__all__ = ["make_plots"]
+
+
+def figure3(frames: dict):
+    """Best and worst trajectory (delta and omega), predicted vs reference, for each PINN
+    configuration's first seed (the paper's figure 3)."""
+    acc = ok(frames.get("accuracy"))
+    if acc.empty or "best_pred" not in acc:
+        return None
+    acc = acc[trained(acc) & (acc["against"] == "reference") & acc["best_pred"].notna()]
+    if acc.empty:
+        return None
+    acc = acc[acc["seed"] == acc.groupby(["solver", "config"])["seed"].transform("min")]
+    specs = list(dict.fromkeys(label(acc)))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    t, _ = standard_grid(CASES[acc["case"].iloc[0]])
+    for row, quantity in enumerate(("delta", "omega")):
+        for col, which in enumerate(("best", "worst")):
+            ax = axes[row, col]
+            sel = acc[acc["quantity"] == quantity]
+            ref_drawn = set()
+            for spec, (_, r) in zip(specs, sel.iterrows()):
+                key = (r[f"{which}_P1"],)
+                if key not in ref_drawn:
+                    ax.plot(t, r[f"{which}_ref"], color="black", lw=2.5, alpha=0.35,
+                            label=f"reference, P1={r[f'{which}_P1']:.4g}")
+                    ref_drawn.add(key)
+                ax.plot(t, r[f"{which}_pred"], lw=1.2, ls="--", label=f"{label(r.to_frame().T).iloc[0]}")
+            unit = "rad" if quantity == "delta" else "rad/s"
+            ax.set_title(f"{which} trajectory: {quantity}")
+            ax.set_ylabel(f"{quantity} ({unit})")
+            ax.grid(alpha=0.3)
+            if row == 1:
+                ax.set_xlabel("t (s)")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Predicted (dashed) against the reference: best and worst trajectory by rel. L2")
+    fig.tight_layout()
+    return fig
+
+
+def work_precision_plot(frames: dict):
+    wp = ok(frames.get("work_precision"))
+    if wp.empty:
+        return None
+    wp = wp.assign(label=label(wp))
+    fig, ax = plt.subplots(figsize=(8, 6))
+    for name, g in wp[~trained(wp)].groupby("label", sort=False):
+        g = g.sort_values("rel_l2_delta")
+        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, label=name)
+    for name, g in wp[trained(wp)].groupby("label", sort=False):
+        ax.scatter(g["rel_l2_delta"], g["median_s"], marker="*", s=140, zorder=3, label=f"{name} (PINN)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("rel. L2 error of delta on the 100 x 201 grid")
+    ax.set_ylabel("warm query time of the grid (s)")
+    ax.set_title("Work-precision: classical tolerance sweeps (lines) and PINNs (stars)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def latency_t1_plot(frames: dict):
+    lat = ok(frames.get("latency"))
+    if lat.empty or "kind" not in lat:
+        return None
+    lat = lat[lat["kind"] == "single point"]
+    if lat.empty:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for name, g in lat.assign(label=label(lat)).groupby("label", sort=False):
+        g = g.sort_values("t1_s")
+        ax.errorbar(g["t1_s"], g["median_s"], yerr=[g["median_s"] - g["q25_s"], g["q75_s"] - g["median_s"]],
+                    marker="o", ms=4, capsize=2, label=name, ls="--" if trained(g).any() else "-")
+    ax.set_yscale("log")
+    ax.set_xlabel("t1 (s)")
+    ax.set_ylabel("warm query time of delta, omega at t1 (s)")
+    ax.set_title("Single-time-point query: a classical solver integrates from 0, a PINN evaluates at t1")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def identification_plot(frames: dict):
+    df = ok(frames.get("identification"))
+    if df.empty or "m_rel_error" not in df:
+        return None
+    df = df.assign(label=label(df))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    markers = {noise: marker for noise, marker in zip(sorted(df["noise"].unique()), "os^D")}
+    for ax, column, name in ((axes[0], "m_rel_error", "m"), (axes[1], "d_rel_error", "d")):
+        for i, (spec, g) in enumerate(df.groupby("label", sort=False)):
+            for noise, h in g.groupby("noise"):
+                ax.scatter(h["pair"] + 0.08 * (i - 2), np.maximum(h[column], 1e-12), marker=markers[noise],
+                           color=f"C{i}", label=f"{spec}, noise {noise:.0%}")
+        ax.set_yscale("log")
+        ax.set_xlabel("(m, d) pair index")
+        ax.set_title(f"relative error of {name}")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=6)
+    fig.tight_layout()
+    return fig
+
+
+PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1": latency_t1_plot,
+         "identification": identification_plot}
+
+
+def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path) -> list[str]:
+    """Write every plot that has data as `<name>.png` and `<name>.pdf`; return the names."""
+    import io
+
+    from harness.store import atomic_write
+
+    written = []
+    for name, build in PLOTS.items():
+        fig = build(frames)
+        if fig is None:
+            continue
+        for ext in ("png", "pdf"):
+            buffer = io.BytesIO()
+            fig.savefig(buffer, format=ext, dpi=130)
+            atomic_write(Path(out_dir) / f"{name}.{ext}", buffer.getvalue())
+        plt.close(fig)
+        written.append(name)
+    return written
