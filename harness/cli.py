@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from harness import sweep  # imports only the standard library until a sweep runs
+
 SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification")
 
 DESCRIPTION = """\
@@ -55,6 +57,7 @@ def _parser() -> argparse.ArgumentParser:
     report = sub.add_parser("report", help="re-render tables from a results folder without running",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables.")
     report.add_argument("directory", type=Path)
+    sweep.add_parser(sub)
     return parser
 
 
@@ -138,7 +141,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    return {"run": cmd_run, "report": cmd_report}[args.command](args)
+    return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep}[args.command](args)
 
 
 if __name__ == "__main__":
