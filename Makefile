@@ -30,3 +30,18 @@ lint: setup
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
+
+# asv benchmarks (benchmarks/, asv.conf.json) in the project's own .venv (`-E existing`). `make asv`
+# stores its results in .asv/results under the HEAD commit (then `asv publish` -> .asv/html);
+# `make asv-quick` runs each benchmark once with small budgets, saves nothing, and fails (asv exits 2)
+# if any benchmark fails.
+.PHONY: asv asv-quick
+ASV_RUN = $(BIN)/asv run --environment existing:$(CURDIR)/$(BIN)/python --show-stderr
+
+asv: setup
+	$(BIN)/asv machine --yes > /dev/null
+	$(ASV_RUN) --set-commit-hash $$(git rev-parse HEAD) --durations 10
+
+asv-quick: setup
+	$(BIN)/asv machine --yes > /dev/null
+	SWINGBENCH_ASV_QUICK=1 $(ASV_RUN) --quick --durations 5

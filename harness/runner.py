@@ -55,7 +55,7 @@ def _progress_bar(total: int, enabled: bool | None):
     return tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True)
 
 
-def _fit(solver: AbstractSolver, settings: Settings) -> FitReport:
+def fit_or_load(solver: AbstractSolver, settings: Settings) -> FitReport:
     """`fit()`, or load the trained model from the cache (with the training cost it had)."""
     cacheable = Persistable(solver) and settings.cache_dir is not None
     if cacheable and not settings.retrain:
@@ -99,7 +99,7 @@ def run_suites(
         try:
             solver = spec.make(case)
             if any(s.needs_fit for s in todo):
-                report = _fit(solver, settings)
+                report = fit_or_load(solver, settings)
                 store.add({"suite": "fit", **base, "status": "ok", "fit_s": report.seconds,
                            "iterations": report.iterations, "loss": report.loss, "message": report.message})
         except Exception as exc:  # noqa: BLE001 - recorded as a row, the run goes on

@@ -79,7 +79,7 @@ class Settings:
 
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, seeds=(0,),
-    pinn_options={"max_seconds": 10.0}, throughput_sizes=(1, 100), t1_values_s=(1.0, 10.0, 20.0),
+    pinn_options={"max_seconds": 10.0, "id_max_seconds": 10.0}, throughput_sizes=(1, 100), t1_values_s=(1.0, 10.0, 20.0),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
 # make bench: every suite within ~30 minutes on 2 cores; identification on 3 of the 10 pairs

@@ -27,7 +27,7 @@ starts; a bad spec stops with a message naming the key.
 Each run is `run_task(SweepTask)`: a pure function of a small picklable task (adapter, config,
 options, seed, case, threads=1), executed in a worker process. It pins the worker to one thread
 (OMP/BLAS environment variables and threadpoolctl, `torch.set_num_threads(1)` when torch is loaded,
-and XLA_FLAGS before jax can be imported), builds the adapter, fits it (`harness.runner._fit`:
+and XLA_FLAGS before jax can be imported), builds the adapter, fits it (`harness.runner.fit_or_load`:
 trained models come from the model cache unless --retrain, with the training cost recorded when
 they were trained), runs `harness.suites.accuracy.accuracy` and returns plain dict rows: one per
 accuracy measurement, with the swept values as `p_<option>` columns, `fit_s`, `iterations`,
@@ -371,7 +371,7 @@ def run_task(task: SweepTask) -> list[dict]:
     with pinned_threads(task.threads):
         try:
             from harness.cases import CASES
-            from harness.runner import _fit
+            from harness.runner import fit_or_load
             from harness.runs import Settings, SolverSpec
             from harness.suites.accuracy import accuracy
             from solvers import SOLVERS
@@ -387,7 +387,7 @@ def run_task(task: SweepTask) -> list[dict]:
             limit_torch(task.threads)  # an adapter may import torch when built
             settings = Settings(name="sweep", threads=task.threads, retrain=task.retrain,
                                 cache_dir=None if task.cache_dir is None else Path(task.cache_dir))
-            report = _fit(solver, settings)
+            report = fit_or_load(solver, settings)
             fit = {"fit_s": report.seconds, "iterations": report.iterations, "loss": report.loss,
                    "fit_message": report.message}
             rows = accuracy(solver, case, settings)

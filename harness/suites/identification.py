@@ -25,14 +25,20 @@ def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0) 
     return Observations(t[j], P1[i], values)
 
 
+def pair_observations(case: Case, settings: Settings, pair_index: int, noise: float) -> Observations:
+    """The observations of pair `pair_index` of `settings.pairs` (the rest of `case` fixed) at a
+    noise level: seed 1000 + pair index, so every adapter sees the same samples."""
+    m, d = settings.pairs[pair_index]
+    return observations(case.with_params(m, d), settings.n_u, noise, seed=1000 + pair_index)
+
+
 def identification(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """For each (m, d) pair of `settings.pairs` (the rest of `case` fixed) and each noise level:
     estimate m and d from `settings.n_u` samples; relative errors and wall time (s)."""
     rows = []
     for pair_index, (m, d) in enumerate(settings.pairs):
-        truth = case.with_params(m, d)
         for noise in settings.noise_levels:
-            obs = observations(truth, settings.n_u, noise, seed=1000 + pair_index)
+            obs = pair_observations(case, settings, pair_index, noise)
             est = solver.identify(obs)
             rows.append({
                 "pair": pair_index, "m_true": m, "d_true": d, "noise": noise, "n_u": settings.n_u,
