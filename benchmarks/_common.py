@@ -84,6 +84,7 @@ SETTINGS: Settings = replace(
     pinn_options={"max_seconds": TRAIN_SECONDS, "id_max_seconds": TRAIN_SECONDS, "progress": False},
     pairs=QUICK.pairs,
     noise_levels=QUICK.noise_levels,
+    skip_identify_configs=(),
     cache_dir=_repo_root() / ".cache" / "models",
 )
 

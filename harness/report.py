@@ -237,6 +237,16 @@ def _header(meta: dict) -> str:
             f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}.\n\n")
 
 
+HEADLINE = ("paper", "matched", "break_even", "accuracy", "identification")
+
+
+def headline_markdown(rows: list[dict], meta: dict) -> str:
+    """The headline tables of a run (for the project README), in Markdown."""
+    tables = build_tables(suite_frames(rows))
+    return _header(meta) + "\n".join(f"### {title}\n\n{table.to_markdown(index=False)}\n"
+                                      for name, (title, table) in tables.items() if name in HEADLINE)
+
+
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
     """Write `<suite>.csv` (tidy, one row per measurement), `tables.md`, `tables.tex`, the plots,
     `README.md` and `metadata.json` to `out_dir`, each atomically; return the Markdown."""

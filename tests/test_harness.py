@@ -100,10 +100,15 @@ def test_time_call_counts_repeats():
 
 def test_cli_run_and_report(tmp_path, capsys):
     out = tmp_path / "results"
+    readme = tmp_path / "README.md"
+    readme.write_text("intro\n<!-- swingbench:tables:start -->\nold\n<!-- swingbench:tables:end -->\nend\n")
     assert main(["run", "--quick", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
-                 "--suite", "accuracy", "--out", str(out)]) == 0
+                 "--suite", "accuracy", "--out", str(out), "--update-readme", str(readme)]) == 0
     printed = capsys.readouterr().out
     assert "casadi-cvodes [default]" in printed
+    text = readme.read_text()
+    assert text.startswith("intro\n") and text.endswith("end\n") and "old" not in text
+    assert "casadi-cvodes [default]" in text
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["threads"] == 2 and "version_numpy" in meta
     (out / "tables.md").unlink()

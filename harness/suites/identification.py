@@ -35,6 +35,9 @@ def pair_observations(case: Case, settings: Settings, pair_index: int, noise: fl
 def identification(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """For each (m, d) pair of `settings.pairs` (the rest of `case` fixed) and each noise level:
     estimate m and d from `settings.n_u` samples; relative errors and wall time (s)."""
+    if solver.config in settings.skip_identify_configs:
+        return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
+                           "(--full runs it)"}]
     rows = []
     for pair_index, (m, d) in enumerate(settings.pairs):
         for noise in settings.noise_levels:
