@@ -20,6 +20,8 @@ _ADAPTERS = {
     "scipy-rk45": ("solvers.scipy_rk45", "ScipyRK45", "scipy"),
     "scipy-odeint": ("solvers.scipy_odeint", "ScipyOdeint", "scipy"),
     "casadi-cvodes": ("solvers.casadi_cvodes", "CasadiCVODES", "casadi"),
+    "torch-pinn": ("solvers.pinn.torch_pinn", "TorchPinn", "torch"),
+    "jax-pinn": ("solvers.pinn.jax_pinn", "JaxPinn", "jax"),
 }
 
 

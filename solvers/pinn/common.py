@@ -1,0 +1,202 @@
+"""The adapter base class both PINN backends share: options, fit, identify, solve, save/load.
+
+A backend subclass provides four hooks: `_prepare_backend` (threads, precision),
+`_compile` (the training functions of one problem as numpy-in, numpy-out callables),
+`_make_evaluator` (the fast, warm query function of one trained network) and `_ops` (its
+`network.Ops`, for tests and tools). Everything else is here, once.
+"""
+
+from __future__ import annotations
+
+import abc
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from harness.cases import Observations
+from harness.model import SwingSystem, smib_system
+from solvers.base import AbstractSolver, FitReport, NotFittedError
+from solvers.pinn import spec
+from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
+from solvers.pinn.spec import Architecture, PinnConfig, Problem
+
+__all__ = ["Evaluator", "PinnSolver", "Trainer"]
+
+
+
+class Evaluator(abc.ABC):
+    """The warm query function of one network architecture: compiled (and warmed up) when made,
+    so that `load(theta)` after training costs no compilation."""
+
+    @abc.abstractmethod
+    def load(self, theta: np.ndarray) -> None:
+        """Use the flat float64 parameters `theta` from now on."""
+
+    @abc.abstractmethod
+    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """delta (rad) and omega (rad/s), each (len(P1), len(t)), for t (s) and P1 (p.u.), 1-D
+        float64 numpy; float64 or float32 numpy out (the network's dtype)."""
+
+
+@dataclass(frozen=True)
+class Trainer:
+    """One problem's training functions, numpy float64 in and out (theta (P,)):
+    residuals -> r (N,) (the loss is r @ r), jacobian -> dr/dtheta (N, P),
+    loss_and_grad -> (loss, gradient (P,))."""
+
+    residuals: Callable[[np.ndarray], np.ndarray]
+    jacobian: Callable[[np.ndarray], np.ndarray]
+    loss_and_grad: Callable[[np.ndarray], tuple[float, np.ndarray]]
+
+
+def _progress_enabled(setting: bool | None) -> bool:
+    """None = auto: on for an interactive terminal, off under pytest, CI or a pipe."""
+    if setting is not None:
+        return bool(setting)
+    if "PYTEST_CURRENT_TEST" in os.environ or "pytest" in sys.modules or os.environ.get("CI"):
+        return False
+    return sys.stderr.isatty()
+
+
+class PinnSolver(AbstractSolver):
+    """A physics-informed neural network u(t, P1) -> delta for the case's swing equation.
+
+    `fit()` trains on the paper's data (initial and boundary points whose delta comes from the tight
+    reference `harness.reference.reference`, where the paper used MATLAB ode45) plus the physics
+    residual on collocation points (see `spec.PinnConfig` and `spec.forward_problem`); `solve`
+    evaluates delta (rad) and omega = d delta/dt (rad/s, forward-mode autodiff of the same network,
+    or the second output of a two-output network) on the trained domain; `identify` trains a
+    network with m = exp(log m), d = exp(log d) as extra parameters on the observations and the
+    residual. `save(path)` / `load(path)` write and read `<path>.npz` (weights) and `<path>.json`
+    (config, case, architecture, identified m and d); a model saved by one backend loads into the
+    other.
+
+    Options: every `PinnConfig` field (seed, max_seconds, max_iterations, ...; the named CONFIGS
+    set several), threads (2: the backend's intra-op threads and the BLAS of the optimiser),
+    progress (None: a tqdm bar on a terminal, quiet under pytest / CI / a pipe; True / False).
+    Deterministic for a given seed and thread count.
+    """
+
+    bounded_domain: ClassVar[bool] = True
+    OPTIONS: ClassVar[dict[str, Any]] = {"threads": 2, "progress": None, **PinnConfig().to_json()}
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
+
+    def _check_options(self) -> None:
+        super()._check_options()
+        self.pinn_config = PinnConfig.from_options(self.options)
+        threads = self.options["threads"]
+        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+            raise ValueError(f"option threads must be an integer >= 1, got {threads!r}")
+        if self.options["progress"] not in (None, True, False):
+            raise ValueError(f"option progress must be None, True or False, got {self.options['progress']!r}")
+
+    # ---- backend hooks ---------------------------------------------------------------------
+
+    @abc.abstractmethod
+    def _prepare_backend(self) -> str:
+        """Set threads and precision before the first computation; return a note ("" if none)."""
+
+    @abc.abstractmethod
+    def _compile(self, arch: Architecture, problem: Problem, system: SwingSystem, dtype: str) -> Trainer:
+        """The training functions of `problem` for a network `arch` computing in `dtype`."""
+
+    @abc.abstractmethod
+    def _make_evaluator(self, arch: Architecture, dtype: str) -> Evaluator:
+        """The query function of networks `arch` computing in `dtype`, compiled and warmed up."""
+
+    # ---- training ----------------------------------------------------------------------------
+
+    def _train(self, arch: Architecture, problem: Problem, theta0: np.ndarray, max_iterations: int,
+               deadline: float, what: str) -> OptimResult:
+        config = self.pinn_config
+        trainer = self._compile(arch, problem, smib_system(self.case), config.dtype)
+        bar = None
+        progress = None
+        if _progress_enabled(self.options["progress"]):
+            from tqdm.auto import tqdm
+
+            bar = tqdm(desc=f"{self.name} {what}", unit="it", leave=False)  # budget: time or iterations
+
+            def progress(iteration: int, loss: float) -> None:
+                bar.set_postfix_str(f"loss {loss:.3e}", refresh=False)
+                bar.update(iteration - bar.n)  # redraws at most every 0.1 s, with the elapsed time
+
+        from threadpoolctl import threadpool_limits
+
+        try:
+            with threadpool_limits(self.options["threads"]):
+                if config.optimizer == "lm":
+                    return levenberg_marquardt(
+                        trainer.residuals, trainer.jacobian, theta0, max_iterations=max_iterations,
+                        deadline=deadline, progress=progress)
+                return lbfgs(trainer.loss_and_grad, theta0, history=config.lbfgs_history,
+                             max_iterations=max_iterations, deadline=deadline, progress=progress)
+        finally:
+            if bar is not None:
+                bar.close()
+
+    def _fit(self) -> FitReport:
+        deadline = time.perf_counter() + self.pinn_config.max_seconds
+        note = self._prepare_backend()
+        config = self.pinn_config
+        arch = Architecture.of(config, self.case)
+        problem = spec.forward_problem(config, self.case)
+        theta0 = spec.init_theta(arch, config.seed)
+        evaluator = self._make_evaluator(arch, config.dtype)  # compiled within the time budget
+        result = self._train(arch, problem, theta0, config.max_iterations, deadline, "fit")
+        self._set_model(arch, result.theta, evaluator)
+        return FitReport(seconds=0.0, iterations=result.iterations, loss=result.loss,
+                         message=result.message + (f"; {note}" if note else ""))
+
+    def _set_model(self, arch: Architecture, theta: np.ndarray, evaluator: Evaluator | None = None) -> None:
+        self.arch, self.theta = arch, np.asarray(theta, np.float64)
+        self._evaluate = evaluator or self._make_evaluator(arch, self.pinn_config.dtype)
+        self._evaluate.load(self.theta)
+
+    def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._evaluate(t, P1)
+
+    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+        config = self.pinn_config
+        deadline = time.perf_counter() + config.id_max_seconds
+        note = self._prepare_backend()
+        arch = Architecture.of(config, self.case, identification=True,
+                               p_range=spec.identification_p_range(self.case, obs))
+        problem = spec.identification_problem(config, self.case, obs)
+        theta0 = spec.init_theta(arch, config.seed, config.m_init, config.d_init)
+        result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify")
+        m, d = np.exp(result.theta[-2:])
+        self.identification = {"m": float(m), "d": float(d), "arch": arch, "theta": result.theta}
+        success = result.success and bool(np.isfinite([m, d]).all())
+        return float(m), float(d), result.iterations, success, result.message + (f"; {note}" if note else "")
+
+    # ---- persistence -------------------------------------------------------------------------
+
+    def save(self, path) -> tuple:
+        """Write `<path>.npz` (weights) and `<path>.json` (config, case, architecture, the last
+        identification); returns the two paths. Loadable by either backend."""
+        if not self.fitted:
+            raise NotFittedError(f"{self.name}: nothing to save before fit() (or load())")
+        return spec.save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
+                               arch=self.arch, theta=self.theta,
+                               identification=getattr(self, "identification", None))
+
+    def load(self, path) -> PinnSolver:
+        """Load what either backend saved at `path` (its config replaces this solver's config
+        fields; threads and progress stay) and return this solver, fitted."""
+        saved = spec.load_model(path)
+        if saved["case"] != self.case:
+            raise ValueError(f"{path}: saved for case {saved['case']!r}, this solver has {self.case!r}")
+        self.options.update(saved["config"].to_json())
+        self.pinn_config = saved["config"]
+        self._prepare_backend()
+        self._set_model(saved["arch"], saved["theta"])
+        if saved["identification"] is not None:
+            self.identification = saved["identification"]
+        self.fitted = True
+        return self
