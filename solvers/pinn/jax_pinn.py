@@ -123,5 +123,5 @@ class _JitEvaluator(Evaluator):
     def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with self.x64:
             out = self.fn(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
-        both = np.asarray(out)
+        both = np.array(out)  # a writeable copy, like torch-pinn's results (np.asarray is read-only)
         return both[0], both[1]
