@@ -302,17 +302,16 @@ def load_spec(path: Path, check: bool = True) -> SweepSpec:
 
 @contextlib.contextmanager
 def pinned_threads(n: int) -> Iterator[None]:
-    """Pin this process to `n` threads for the duration: OMP/BLAS environment variables and
-    XLA_FLAGS (read by libraries loaded from now on: jax must not be imported yet), threadpoolctl
-    for the BLAS/OpenMP pools already loaded; `limit_torch` does torch once it is imported. The
-    environment and limits are restored afterwards (what was loaded inside keeps its setting)."""
-    saved = {var: os.environ.get(var) for var in (*THREAD_ENV, "XLA_FLAGS")}
-    for var in THREAD_ENV:
+    """Pin this process to `n` threads for the duration: OMP/BLAS environment variables, PJRT_NPROC
+    (the size of XLA's CPU pool) and XLA_FLAGS (read by libraries loaded from now on: XLA's backend
+    must not have started yet), threadpoolctl for the BLAS/OpenMP pools already loaded;
+    `limit_torch` does torch once it is imported. The environment and limits are restored
+    afterwards (what was loaded inside keeps its setting)."""
+    saved = {var: os.environ.get(var) for var in (*THREAD_ENV, "PJRT_NPROC", "XLA_FLAGS")}
+    for var in (*THREAD_ENV, "PJRT_NPROC"):
         os.environ[var] = str(n)
-    flags = re.sub(r"(--)?(xla_cpu_multi_thread_eigen|intra_op_parallelism_threads)=\S*", "",
-                   os.environ.get("XLA_FLAGS", ""))
-    os.environ["XLA_FLAGS"] = " ".join(
-        [*flags.split(), "--xla_cpu_multi_thread_eigen=false", f"intra_op_parallelism_threads={n}"])
+    flags = re.sub(r"(--)?xla_cpu_multi_thread_eigen=\S*", "", os.environ.get("XLA_FLAGS", ""))
+    os.environ["XLA_FLAGS"] = " ".join([*flags.split(), "--xla_cpu_multi_thread_eigen=false"])
     torch_before = _torch_threads()
     try:
         with contextlib.ExitStack() as stack:

@@ -15,16 +15,14 @@ THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
 
 
 def pin_threads(n: int) -> None:
-    """Pin BLAS/OpenMP, torch and XLA to `n` threads. Environment variables only take effect in
-    libraries not yet loaded, so call this first thing in a process (the CLI and asv do)."""
+    """Pin BLAS/OpenMP and XLA to `n` threads (torch: the adapter's `threads` option). Environment
+    variables only take effect in libraries not yet loaded, so call this first thing in a process
+    (the CLI and asv do). XLA sizes its CPU pool from PJRT_NPROC when its backend starts (see
+    `solvers.pinn.jax_pinn`, which sets it again from its own `threads` option)."""
     for var in THREAD_ENV:
         os.environ[var] = str(n)
     os.environ["SWINGBENCH_THREADS"] = str(n)
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "intra_op_parallelism_threads" not in flags:
-        os.environ["XLA_FLAGS"] = (
-            f"{flags} --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads={n}"
-        ).strip()
+    os.environ["PJRT_NPROC"] = str(n)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:

@@ -341,6 +341,28 @@ def test_deterministic_for_a_seed(name):
     assert not np.array_equal(thetas[0], thetas[2])
 
 
+def test_training_runs_the_optimisers_blas_on_one_thread(monkeypatch):
+    """The backend keeps `threads`; numpy/scipy BLAS inside the optimiser runs on one thread (two
+    pools of 2 threads on 2 cores oversubscribe them; see PinnSolver._train)."""
+    _need("torch-pinn")
+    import torch
+    from threadpoolctl import threadpool_info
+
+    from solvers.pinn import common
+
+    seen = []
+    real = common.levenberg_marquardt
+
+    def spy(*args, **kwargs):
+        seen.append(({p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"},
+                     torch.get_num_threads()))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(common, "levenberg_marquardt", spy)
+    make_solver("torch-pinn", CASE, **{**SMALL, "threads": 2}).fit()
+    assert seen == [({1}, 2)]
+
+
 @pytest.mark.parametrize("name", list(BACKENDS))
 @pytest.mark.parametrize("bad", [
     {"outputs": 3}, {"threads": 0}, {"dtype": "float16"}, {"n_u": 0, "n_f": 0}, {"max_seconds": -1.0},

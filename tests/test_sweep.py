@@ -172,14 +172,15 @@ def test_example_spec_parses():
 
 def test_pinned_threads_sets_and_restores_environment(monkeypatch):
     monkeypatch.setenv("OMP_NUM_THREADS", "7")
-    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x intra_op_parallelism_threads=4")
+    monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=true")
+    monkeypatch.delenv("PJRT_NPROC", raising=False)
     with sweep.pinned_threads(1):
         assert os.environ["OMP_NUM_THREADS"] == os.environ["OPENBLAS_NUM_THREADS"] == "1"
-        flags = os.environ["XLA_FLAGS"].split()
-        assert flags == ["--xla_dump_to=/tmp/x", "--xla_cpu_multi_thread_eigen=false",
-                         "intra_op_parallelism_threads=1"]
+        assert os.environ["PJRT_NPROC"] == "1"
+        assert os.environ["XLA_FLAGS"].split() == ["--xla_dump_to=/tmp/x", "--xla_cpu_multi_thread_eigen=false"]
     assert os.environ["OMP_NUM_THREADS"] == "7"
-    assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x intra_op_parallelism_threads=4"
+    assert "PJRT_NPROC" not in os.environ
+    assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=true"
 
 
 def test_failing_task_is_a_failed_row():
