@@ -80,7 +80,6 @@ SETTINGS: Settings = replace(
     _BASE,
     threads=THREADS,
     seeds=_BASE.seeds[:1],
-    paper_config_seeds=_BASE.paper_config_seeds[:1],
     pinn_options={"max_seconds": TRAIN_SECONDS, "id_max_seconds": TRAIN_SECONDS, "progress": False},
     pairs=QUICK.pairs,
     noise_levels=QUICK.noise_levels,

@@ -15,6 +15,7 @@ __all__ = [
     "break_even",
     "fmt",
     "fmt_range",
+    "identification_data",
     "label",
     "matched_speedups",
     "ok",
@@ -36,6 +37,14 @@ def label(df: pd.DataFrame) -> pd.Series:
     """"solver [config, variant]": the spec without its seed, the unit seeds are summarised over."""
     variant = df["variant"].fillna("").astype(str).map(lambda v: f", {v}" if v else "")
     return df["solver"] + " [" + df["config"] + variant + "]"
+
+
+def identification_data(df: pd.DataFrame) -> pd.Series:
+    """The data source of identification rows ("reference" or "paper ode45"); rows of runs made
+    before the column existed were all on the reference."""
+    if "data" not in df:
+        return pd.Series("reference", index=df.index)
+    return df["data"].fillna("reference")
 
 
 def trained(df: pd.DataFrame) -> pd.Series:

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from harness.analysis import label, ok, trained
+from harness.analysis import identification_data, label, ok, trained
 from harness.cases import CASES, standard_grid
 
 __all__ = ["make_plots"]
@@ -103,14 +103,16 @@ def identification_plot(frames: dict):
     df = ok(frames.get("identification"))
     if df.empty or "m_rel_error" not in df:
         return None
-    df = df.assign(label=label(df))
+    df = df.assign(label=label(df), data=identification_data(df))
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
-    markers = {noise: marker for noise, marker in zip(sorted(df["noise"].unique()), "os^D")}
+    kinds = list(dict.fromkeys(zip(df["data"], df["noise"])))
+    markers = {kind: marker for kind, marker in zip(sorted(kinds), "os^Dv<>")}
     for ax, column, name in ((axes[0], "m_rel_error", "m"), (axes[1], "d_rel_error", "d")):
         for i, (spec, g) in enumerate(df.groupby("label", sort=False)):
-            for noise, h in g.groupby("noise"):
-                ax.scatter(h["pair"] + 0.08 * (i - 2), np.maximum(h[column], 1e-12), marker=markers[noise],
-                           color=f"C{i}", label=f"{spec}, noise {noise:.0%}")
+            for (data, noise), h in g.groupby(["data", "noise"]):
+                ax.scatter(h["pair"] + 0.08 * (i - 2), np.maximum(h[column], 1e-12),
+                           marker=markers[(data, noise)], color=f"C{i % 10}",
+                           label=f"{spec}, {data}, noise {noise:.0%}")
         ax.set_yscale("log")
         ax.set_xlabel("(m, d) pair index")
         ax.set_title(f"relative error of {name}")

@@ -11,9 +11,14 @@ from scipy.integrate import solve_ivp
 from harness.cases import CASES, Case, check_array
 from harness.model import accelerations, smib_system
 
-__all__ = ["REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference", "seed_reference"]
+__all__ = ["PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference",
+           "seed_reference"]
 
 REFERENCE_TOL = 1e-12
+# Names of the two data sources of delta in the rows: this module's `reference`, and the paper's
+# published MATLAB ode45 trajectories (`seed_reference`, ~1.2e-3 rad of their own error).
+REFERENCE_DATA = "reference"
+PAPER_DATA = "paper ode45"
 
 
 def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:

@@ -176,3 +176,48 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
     assert "toy-pinn [default]" in markdown and "scipy-odeint [default]" in markdown
     assert (tmp_path / "work_precision.png").exists() and (tmp_path / "tables.tex").exists()
     assert "![work_precision](work_precision.png)" in (tmp_path / "README.md").read_text()
+
+
+def test_identification_observations_from_the_reference_or_the_papers_data():
+    from harness.cases import SMIB_IDENTIFICATION
+    from harness.reference import SEED_DIR, load_seed_reference, reference
+    from harness.suites.identification import observations
+
+    tight = observations(SMIB_IDENTIFICATION, 50, seed=3)
+    paper = observations(SMIB_IDENTIFICATION, 50, seed=3, data="paper ode45")
+    # the same grid points from either source (MATLAB's 0:0.1:20 and linspace differ in rounding)
+    np.testing.assert_allclose(paper.t, tight.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(paper.P1, tight.P1, rtol=0, atol=1e-12)
+    t, P1, delta = load_seed_reference(SEED_DIR / "swingEquation_identification.mat")
+    i, j = np.abs(P1 - paper.P1[0]).argmin(), np.abs(t - paper.t[0]).argmin()
+    assert paper.delta[0] == delta[i, j]
+    assert tight.delta[0] == pytest.approx(reference(SMIB_IDENTIFICATION, [tight.t[0]], [tight.P1[0]])[0][0, 0], abs=1e-10)
+    assert 0 < np.max(np.abs(paper.delta - tight.delta)) < 2e-3  # ode45's own error
+    with pytest.raises(ValueError, match="published no data"):
+        observations(SMIB_IDENTIFICATION.with_params(0.3, 0.1), 10, data="paper ode45")
+    with pytest.raises(ValueError, match="data must be"):
+        observations(SMIB_IDENTIFICATION, 10, data="matlab")
+
+
+def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
+    from harness.cases import SMIB_IDENTIFICATION
+    from harness.suites.identification import identification
+
+    settings = replace(QUICK, pairs=((0.25, 0.15), (0.1, 0.05)), noise_levels=(0.0, 0.01), n_u=60)
+    solver = solvers.make_solver("scipy-odeint", SMIB_IDENTIFICATION, "tight")
+    rows = identification(solver, SMIB_IDENTIFICATION, settings)
+    runs = [(r["pair"], r["noise"], r["data"]) for r in rows]
+    assert runs == [(0, 0.0, "reference"), (0, 0.01, "reference"), (0, 0.0, "paper ode45"),
+                    (1, 0.0, "reference"), (1, 0.01, "reference")]
+    by_run = dict(zip(runs, rows))
+    assert by_run[0, 0.0, "reference"]["m_rel_error"] < 1e-6
+    # the paper's ode45 data carry ~1e-3 rad of error: that, not the method, limits the estimate
+    assert 0 < by_run[0, 0.0, "paper ode45"]["m_rel_error"] < 2e-3
+    base = {"suite": "identification", "case": "smib-identification", "solver": "scipy-odeint",
+            "config": "tight", "variant": "", "seed": -1, "threads": 2, "status": "ok"}
+    write_report([{**base, **row} for row in rows], tmp_path, {}, plots=False)
+    table = pd.read_csv(tmp_path / "identification.csv")
+    assert set(table["data"]) == {"reference", "paper ode45"}
+    markdown = (tmp_path / "tables.md").read_text()
+    assert "identification from the paper's ode45 data (m = 0.25, d = 0.15)" in markdown
+    assert "mean error of m / d over 2 (m, d) pair(s)" in markdown
