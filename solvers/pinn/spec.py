@@ -128,8 +128,9 @@ CONFIG_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(PinnCo
 
 # Named option sets of both adapters (overrides of the PinnConfig defaults).
 CONFIGS: dict[str, dict[str, Any]] = {
-    # The best we found (measured with JAX, 1 thread of a busy 2-core machine, 55 s, seeds 0-2:
-    # rel. L2 delta 2.6e-6..4.9e-6, omega 7.7e-6..1.6e-5): float64 (float32 stalls the loss near
+    # The best we found (measured on 2 threads, 55 s, seeds 0-2, rel. L2 of delta / omega: JAX
+    # 1.2e-6..2.1e-6 / 4.5e-6..6.1e-6 in ~4500 LM iterations, torch 7.7e-6..1.3e-5 / 1.9e-5..4.1e-5
+    # in ~1600; the choices below were made with JAX on 1 thread): float64 (float32 stalls the loss near
     # 1e-7 relative), hard initial conditions (the paper's data-only initial condition leaves
     # 4e-3..8e-3 in float64), Levenberg-Marquardt (optim.py), and a small 2 x 16 network on 2000
     # points: a smaller Jacobian buys more LM iterations in the budget (Marquardt scaling, seed 0:
@@ -140,10 +141,10 @@ CONFIGS: dict[str, dict[str, Any]] = {
     # As published (Misyris et al. 2020): 5 x 10 tanh, N_u = 40 initial/boundary points,
     # N_f = 8000 LHS points, L-BFGS, float32, no hard constraints; identification 5 x 30 on the
     # observations only (no extra collocation points). L-BFGS runs until its line search stalls
-    # (~2000 iterations, 30-40 s) unless max_seconds ends it. The result depends on the seed: with
-    # the initial condition given only as data at a few t = 0 points, omega(0) of the interior P1
-    # is left to the network's interpolation (measured rel. L2 delta 7.6e-3..2.5e-2 in 4 runs,
-    # seeds 0 and 1, both backends; the paper: 1.34e-2).
+    # (1600-2700 iterations: 16-25 s with JAX, 26-53 s with torch, 2 threads) unless max_seconds
+    # ends it. The result depends on the seed: with the initial condition given only as data at a
+    # few t = 0 points, omega(0) of the interior P1 is left to the network's interpolation
+    # (measured rel. L2 delta, seeds 0-2: JAX 9.9e-3..2.0e-2, torch 9.3e-3..3.4e-2; the paper: 1.34e-2).
     "paper": {
         "hidden_layers": 5, "width": 10, "outputs": 1, "hard_ic": False, "dtype": "float32",
         "n_u": 40, "n_f": 8000, "optimizer": "lbfgs", "max_seconds": 120.0,
