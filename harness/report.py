@@ -115,7 +115,9 @@ def _latency_table(frames: dict) -> pd.DataFrame:
     if df is None or df.empty or "query" not in df:
         return pd.DataFrame()
     df = df[df["query"].notna()].assign(label=label(df[df["query"].notna()]))
-    cell = np.where(df["status"] == "ok", (df["median_s"] * 1e3).map(fmt), df["status"].str.replace("skipped: ", ""))
+    spread = 100 * (df["q75_s"] - df["q25_s"]) / (2 * df["median_s"])
+    timed = [f"{fmt(m * 1e3)} ±{fmt(p, 2)}%" for m, p in zip(df["median_s"], spread)]
+    cell = np.where(df["status"] == "ok", timed, df["status"].str.replace("skipped: ", ""))
     wide = df.assign(cell=cell).pivot_table(index=["case", "label"], columns="query", values="cell",
                                             aggfunc="first", sort=False)
     wide.columns = [f"{c} (ms)" for c in wide.columns]
@@ -214,7 +216,8 @@ TABLES = {
     "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
                  "delta accuracy (interpolated on its tolerance sweep)"), _matched_table),
     "break_even": ("Cost of training: queries needed before a PINN pays off", _break_even_table),
-    "latency": ("Warm query latency (median of repeats, ms), delta and omega", _latency_table),
+    "latency": (("Warm query latency of delta and omega, ms: median of repeats ± half the interquartile "
+                 "range (in % of the median)"), _latency_table),
     "identification": (("Identification of m and d from N_u = 100 samples of delta: the tight reference "
                         "(over the (m, d) pairs) or the paper's ode45 data (its own case)"),
                        _identification_table),

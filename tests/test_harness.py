@@ -221,3 +221,25 @@ def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
     markdown = (tmp_path / "tables.md").read_text()
     assert "identification from the paper's ode45 data (m = 0.25, d = 0.15)" in markdown
     assert "mean error of m / d over 2 (m, d) pair(s)" in markdown
+
+
+@pytest.mark.parametrize("classical_s,verdict", [
+    (0.004, "toy-pinn default 2x faster than the fastest classical at >= its accuracy (scipy-odeint [default], 0.004 s)"),
+    (0.001, ("classical wins: the fastest classical at >= its accuracy (scipy-odeint [default], 0.001 s) is 2x "
+            "faster than toy-pinn default (0.002 s)")),
+])
+def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
+    from harness.paper import paper_table
+    from harness.report import suite_frames
+
+    base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
+    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0}
+    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1}
+    rows = [
+        {"suite": "accuracy", **pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-3},
+        {"suite": "accuracy", **ode, "quantity": "delta", "against": "reference", "rel_l2": 1e-4},
+        {"suite": "latency", **pinn, "kind": "grid", "query": "grid 100x201", "median_s": 0.002},
+        {"suite": "latency", **ode, "kind": "grid", "query": "grid 100x201", "median_s": classical_s},
+    ]
+    table = paper_table(suite_frames(rows)).set_index("claim")
+    assert table.loc["100 trajectories, delta and omega on 100 x 201, warm", "what it shows"] == verdict

@@ -193,6 +193,29 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification):
         np.testing.assert_allclose(o_q, to_np(omega), rtol=1e-11, atol=1e-13)
 
 
+def test_torch_query_on_the_full_grid_matches_autodiff():
+    """The full 100 x 201 grid takes the query's large-tensor tanh (2 sigmoid(2 z) - 1)."""
+    _need("torch-pinn")
+    import torch
+
+    from harness.cases import standard_grid
+    from solvers.pinn.torch_pinn import _SIGMOID_TANH_MIN, _FastForward, _tanh_
+
+    z = torch.linspace(-40.0, 40.0, 2 * _SIGMOID_TANH_MIN + 1, dtype=torch.float64)
+    np.testing.assert_allclose(_tanh_(z.clone()).numpy(), torch.tanh(z).numpy(), rtol=0, atol=5e-16)
+    arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=2, width=16), CASE)
+    theta = spec.init_theta(arch, seed=2)
+    evaluator = _FastForward(arch, torch.float64)
+    evaluator.load(theta)
+    t, p = standard_grid(CASE)
+    assert p.size * t.size * 16 >= _SIGMOID_TANH_MIN
+    delta, omega = evaluator(t, p)
+    ops, array, to_np = _ops("torch-pinn")
+    ref_delta, ref_omega = network.delta_omega(arch, array(theta), array(t)[None, :], array(p)[:, None], ops)
+    np.testing.assert_allclose(delta, to_np(ref_delta), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(omega, to_np(ref_omega), rtol=1e-11, atol=1e-13)
+
+
 # ---- persistence -------------------------------------------------------------------------------
 
 

@@ -67,6 +67,19 @@ OPS_AUTOGRAD = dataclasses.replace(OPS, d_dt=_autograd_d_dt, d2_dt2=_autograd_d2
 _DTYPES = {"float32": torch.float32, "float64": torch.float64}
 
 
+_SIGMOID_TANH_MIN = 4096  # entries; below it the 3 extra ops cost more than tanh saves
+
+
+def _tanh_(z: torch.Tensor) -> torch.Tensor:
+    """tanh(z) in place in `z` (which it returns); for large tensors as 2 sigmoid(2 z) - 1. torch's
+    vectorised sigmoid is ~4x cheaper than its tanh (float64, 20100 x 16, 2 threads: 0.20 ms
+    against 0.83 ms): grid query 4.4 -> 2.6 ms, measured interleaved in one process; the absolute
+    rounding error is < 5e-16 (the tests compare the query with torch.tanh under autodiff)."""
+    if z.numel() < _SIGMOID_TANH_MIN:
+        return z.tanh_()
+    return z.mul_(2.0).sigmoid_().mul_(2.0).sub_(1.0)
+
+
 class _FastForward(Evaluator):
     """delta (rad) and omega (rad/s) of a trained network on the grid P1 x t, (n_p, n_t) each.
 
@@ -100,11 +113,11 @@ class _FastForward(Evaluator):
         t = torch.from_numpy(t_np)
         z = torch.addcmul(torch.addcmul(self.b0, torch.from_numpy(p_np).view(n_p, 1, 1), self.w_p),
                           t.view(1, n_t, 1), self.w_t)
-        h = torch.tanh(z.view(n_p * n_t, -1))
+        h = _tanh_(z.view(n_p * n_t, -1))
         h_t = torch.addcmul(self.w_t, h * h, self.w_t, value=-1.0) if self.tangent else None
         for b, w in self.hidden:
             z_t = torch.mm(h_t, w) if self.tangent else None
-            h = torch.tanh(torch.addmm(b, h, w))
+            h = _tanh_(torch.addmm(b, h, w))
             if self.tangent:
                 h_t = z_t.addcmul_(h * h, z_t, value=-1.0)
         out = torch.addmm(self.b_out, h, self.w_out).view(n_p, n_t, -1)
