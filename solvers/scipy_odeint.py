@@ -52,5 +52,6 @@ class ScipyOdeint(AbstractSolver):
 
     def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
         return identify_by_simulation(
-            self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"]
+            self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"],
+            self.options["rtol"],
         )
