@@ -12,7 +12,10 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
+    "GRID_QUERY",
+    "POINT_QUERY",
     "break_even",
+    "fastest_classical",
     "fmt",
     "fmt_range",
     "identification_data",
@@ -24,6 +27,10 @@ __all__ = [
     "time_at_accuracy",
     "trained",
 ]
+
+
+# The latency suite's names of the paper's two timed queries; the work-precision suite times the first.
+GRID_QUERY, POINT_QUERY = "grid 100x201", "single point t1=10 s"
 
 
 def ok(df: pd.DataFrame | None) -> pd.DataFrame:
@@ -122,3 +129,28 @@ def break_even(fit_s: float, classical_s: float, pinn_s: float) -> float:
     when the PINN is not faster per query."""
     gain = classical_s - pinn_s
     return fit_s / gain if gain > 0 else float("inf")
+
+
+def fastest_classical(frames: dict, query: str, max_rel_l2: float) -> tuple[str, float] | None:
+    """The fastest classical option for `query` whose delta rel. L2 is at most `max_rel_l2`:
+    (label, median seconds), or None. Candidates: each classical spec of the accuracy and latency
+    suites and each point of the work-precision tolerance sweeps (labelled with its rtol and atol,
+    which time the grid and the t1 = 10 s query), so that a PINN is compared with the strongest
+    classical option measured."""
+    candidates: list[tuple[str, float]] = []
+    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if not acc.empty and not lat.empty:
+        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & ~trained(acc)]
+        good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
+        lat = lat[(lat["query"] == query) & ~trained(lat)]
+        lat = lat.assign(label=label(lat))
+        candidates += [(name, float(s)) for name, s in zip(lat["label"], lat["median_s"]) if name in good]
+    wp = ok(frames.get("work_precision"))
+    column = {GRID_QUERY: "median_s", POINT_QUERY: "point_median_s"}.get(query)
+    if column in wp:  # rows of runs before the point timing have no point_median_s
+        wp = wp[~trained(wp) & (wp["rel_l2_delta"] <= max_rel_l2) & wp[column].notna()]
+        variant = wp["variant"].fillna("").astype(str).map(lambda v: f"{v}, " if v else "")
+        names = wp["solver"] + " [" + variant + "rtol=" + wp["rtol"].map("{:g}".format) + ", atol=" \
+            + wp["atol"].map("{:g}".format) + "]"
+        candidates += [(name, float(s)) for name, s in zip(names, wp[column])]
+    return min(candidates, key=lambda c: c[1]) if candidates else None

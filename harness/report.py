@@ -18,7 +18,10 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis import (
+    GRID_QUERY,
+    POINT_QUERY,
     break_even,
+    fastest_classical,
     fmt,
     fmt_range,
     identification_data,
@@ -160,23 +163,6 @@ def _matched_table(frames: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def fastest_classical(frames: dict, query: str, max_rel_l2: float) -> tuple[str, float] | None:
-    """The fastest classical spec for `query` among those whose delta rel. L2 (accuracy suite) is
-    at most `max_rel_l2`: (label, median seconds), or None."""
-    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
-    if acc.empty or lat.empty:
-        return None
-    acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & ~trained(acc)]
-    good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
-    lat = lat[(lat["query"] == query) & ~trained(lat)]
-    lat = lat.assign(label=label(lat))
-    lat = lat[lat["label"].isin(good)]
-    if lat.empty:
-        return None
-    best = lat.loc[lat["median_s"].idxmin()]
-    return best["label"], float(best["median_s"])
-
-
 def _break_even_table(frames: dict) -> pd.DataFrame:
     fit, acc, lat = ok(frames.get("fit")), ok(frames.get("accuracy")), ok(frames.get("latency"))
     if fit.empty or acc.empty or lat.empty:
@@ -184,7 +170,7 @@ def _break_even_table(frames: dict) -> pd.DataFrame:
     fit, lat = fit[trained(fit)], lat[trained(lat)]
     acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & trained(acc)]
     rows = []
-    for query in ("grid 100x201", "single point t1=10 s"):
+    for query in (GRID_QUERY, POINT_QUERY):
         for _, q in lat[lat["query"] == query].iterrows():
             name = label(q.to_frame().T).iloc[0]
             fit_s = fit[label(fit) == name]["fit_s"].median()

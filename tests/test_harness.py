@@ -165,7 +165,7 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
         {"suite": "latency", **ode, "kind": "grid", "query": "grid 100x201", "median_s": 0.004, "q25_s": 0.004,
          "q75_s": 0.004, "min_s": 0.004, "repeats": 5},
         {"suite": "work_precision", **pinn, "rel_l2_delta": 1e-3, "median_s": 0.002},
-        *({"suite": "work_precision", **ode, "rtol": r, "rel_l2_delta": e, "median_s": s}
+        *({"suite": "work_precision", **ode, "rtol": r, "atol": r * 1e-3, "rel_l2_delta": e, "median_s": s}
           for r, e, s in ((1e-3, 1e-2, 0.001), (1e-6, 1e-5, 0.004))),
     ]
     markdown = write_report(rows, tmp_path, {"threads": 2}, plots=True)
@@ -243,3 +243,31 @@ def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
     ]
     table = paper_table(suite_frames(rows)).set_index("claim")
     assert table.loc["100 trajectories, delta and omega on 100 x 201, warm", "what it shows"] == verdict
+
+
+def test_fastest_classical_includes_the_tolerance_sweep():
+    """The rival of a PINN is the fastest classical option at least as accurate: a named config
+    or any point of the work-precision sweep, for the grid and for the single-point query."""
+    from harness.analysis import GRID_QUERY, POINT_QUERY, fastest_classical
+    from harness.report import suite_frames
+
+    base = {"case": "smib-inference", "threads": 2, "status": "ok", "seed": -1}
+    ode = {**base, "solver": "scipy-odeint", "config": "default", "variant": ""}
+    rk = {**base, "solver": "scipy-rk45", "config": "tight", "variant": "batch=stacked"}
+    rows = [
+        {"suite": "accuracy", **ode, "quantity": "delta", "against": "reference", "rel_l2": 3e-4},
+        {"suite": "accuracy", **rk, "quantity": "delta", "against": "reference", "rel_l2": 1e-11},
+        *({"suite": "latency", **spec, "query": q, "median_s": s}
+          for spec, q, s in ((ode, GRID_QUERY, 0.006), (ode, POINT_QUERY, 5e-4),
+                             (rk, GRID_QUERY, 0.030), (rk, POINT_QUERY, 1e-2))),
+        *({"suite": "work_precision", **rk, "rtol": r, "atol": r * 1e-3, "rel_l2_delta": e, "median_s": s,
+           "point_median_s": p}
+          for r, e, s, p in ((1e-4, 3e-5, 0.003, 2e-3), (1e-6, 1.5e-7, 0.006, 4e-3))),
+    ]
+    frames = suite_frames(rows)
+    assert fastest_classical(frames, GRID_QUERY, 1e-3) == ("scipy-rk45 [batch=stacked, rtol=0.0001, atol=1e-07]", 0.003)
+    assert fastest_classical(frames, GRID_QUERY, 1e-6) == ("scipy-rk45 [batch=stacked, rtol=1e-06, atol=1e-09]", 0.006)
+    assert fastest_classical(frames, GRID_QUERY, 1e-9) == ("scipy-rk45 [tight, batch=stacked]", 0.030)
+    assert fastest_classical(frames, POINT_QUERY, 1e-3) == ("scipy-odeint [default]", 5e-4)
+    assert fastest_classical(frames, POINT_QUERY, 1e-4) == ("scipy-rk45 [batch=stacked, rtol=0.0001, atol=1e-07]", 2e-3)
+    assert fastest_classical(frames, POINT_QUERY, 1e-12) is None
