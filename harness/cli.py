@@ -97,7 +97,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     store = RowStore(args.out)
     if not args.resume:
         store.clear()
-    meta = {**metadata(args.threads), "settings": settings.name, "argv": sys.argv[1:]}
+    outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
+    meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": sys.argv[1:]}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)

@@ -12,6 +12,7 @@ import json
 import os
 import platform
 import subprocess
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -49,28 +50,42 @@ def _cpu() -> str:
     return platform.processor() or "unknown"
 
 
-def metadata(threads: int) -> dict:
-    """Machine, CPU, threads, library versions, commit and date of a run."""
+def git_commit(repo: Path, outputs: Sequence[Path] = ()) -> str:
+    """The short commit of `repo`, with "+dirty" when a tracked file differs from it, not counting
+    `outputs` (what the run itself writes: its results folder, the README it updates); "unknown"
+    outside a git checkout."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=repo, check=True).stdout.strip()
+        top = Path(subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True,
+                                  cwd=repo, check=True).stdout.strip())
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    excluded = []
+    for path in outputs:
+        try:
+            excluded.append(f":(exclude){Path(path).resolve().relative_to(top.resolve()).as_posix()}")
+        except ValueError:  # outside the checkout: git does not see it anyway
+            continue
+    dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *excluded],
+                           capture_output=True, text=True, cwd=top, check=False).stdout.strip()
+    return commit + ("+dirty" if dirty else "")
+
+
+def metadata(threads: int, outputs: Sequence[Path] = ()) -> dict:
+    """Machine, CPU, threads, library versions, commit (see `git_commit`) and date of a run."""
     versions = {}
     for lib in LIBRARIES:
         try:
             versions[lib] = importlib.metadata.version(lib)
         except importlib.metadata.PackageNotFoundError:
             versions[lib] = "not installed"
-    here = Path(__file__).parent
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=here, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=here, check=False).stdout.strip()
-        commit += "+dirty" if dirty else ""
-    except (OSError, subprocess.CalledProcessError):
-        commit = "unknown"
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": platform.node(), "platform": platform.platform(), "cpu": _cpu(),
         "cpu_count": os.cpu_count(), "threads": threads, "python": platform.python_version(),
-        "commit": commit, **{f"version_{k}": v for k, v in versions.items()},
+        "commit": git_commit(Path(__file__).parent, outputs),
+        **{f"version_{k}": v for k, v in versions.items()},
     }
 
 

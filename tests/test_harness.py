@@ -271,3 +271,30 @@ def test_fastest_classical_includes_the_tolerance_sweep():
     assert fastest_classical(frames, POINT_QUERY, 1e-3) == ("scipy-odeint [default]", 5e-4)
     assert fastest_classical(frames, POINT_QUERY, 1e-4) == ("scipy-rk45 [batch=stacked, rtol=0.0001, atol=1e-07]", 2e-3)
     assert fastest_classical(frames, POINT_QUERY, 1e-12) is None
+
+
+def test_git_commit_is_dirty_only_for_changes_the_run_did_not_write(tmp_path):
+    import subprocess
+
+    from harness.report import git_commit
+
+    def git(*args):
+        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,
+                       capture_output=True)
+
+    (tmp_path / "results").mkdir()
+    for name in ("code.py", "README.md", "results/tables.md"):
+        (tmp_path / name).write_text("one\n")
+    git("init", "-q")
+    git("add", ".")
+    git("commit", "-q", "-m", "one")
+    outputs = [tmp_path / "results", tmp_path / "README.md"]
+    assert not git_commit(tmp_path, outputs).endswith("+dirty")
+    (tmp_path / "results" / "tables.md").write_text("two\n")
+    (tmp_path / "README.md").write_text("two\n")
+    assert not git_commit(tmp_path, outputs).endswith("+dirty")
+    assert git_commit(tmp_path).endswith("+dirty")
+    (tmp_path / "code.py").write_text("two\n")
+    assert git_commit(tmp_path, outputs).endswith("+dirty")
+    assert git_commit(tmp_path / "results", outputs).endswith("+dirty")  # from a subfolder too
+    assert git_commit(tmp_path.parent / "no-such-checkout") == "unknown"
