@@ -43,7 +43,7 @@ def _parser() -> argparse.ArgumentParser:
     size.add_argument("--quick", action="store_true",
                       help="smoke test, a few minutes: one seed, 10 s PINN budgets, small timing budgets")
     size.add_argument("--full", action="store_true",
-                      help="every seed (5), pair (10) and noise level; long")
+                      help="every seed (5), the paper's (m, d) and the 10 pairs, both noise levels; long")
     run.add_argument("--resume", action="store_true",
                      help="keep OUT/rows.jsonl and run only what it does not hold yet")
     run.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")

@@ -14,7 +14,7 @@ from harness.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.report import write_report
 from harness.runner import run_suites
-from harness.runs import QUICK, SolverSpec, default_specs
+from harness.runs import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
 from harness.store import RowStore, atomic_write
 from harness.timing import time_call
 from solvers.base import AbstractSolver, SolveError
@@ -197,6 +197,17 @@ def test_identification_observations_from_the_reference_or_the_papers_data():
         observations(SMIB_IDENTIFICATION.with_params(0.3, 0.1), 10, data="paper ode45")
     with pytest.raises(ValueError, match="data must be"):
         observations(SMIB_IDENTIFICATION, 10, data="matlab")
+
+
+@pytest.mark.parametrize("settings", [DEFAULT, FULL], ids=["default", "full"])
+def test_default_and_full_runs_identify_from_the_papers_data(settings):
+    """--full is a superset of make bench: both identify the paper's own case, also from its data."""
+    from harness.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
+    from harness.suites.identification import _runs
+
+    assert settings.pairs[0] == PAPER_PAIR == (0.25, 0.15)
+    assert (0, 0.0, "paper ode45") in _runs(SMIB_IDENTIFICATION, settings)
+    assert set(DEFAULT.pairs) <= set(FULL.pairs) == {PAPER_PAIR, *IDENTIFICATION_PAIRS}
 
 
 def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
