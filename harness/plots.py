@@ -18,6 +18,18 @@ from harness.cases import CASES, standard_grid
 __all__ = ["make_plots"]
 
 
+def _palette(labels) -> dict:
+    """A distinct colour per label, in order: tab10 up to 10 labels, tab20 up to 20."""
+    labels = list(dict.fromkeys(labels))
+    cmap = plt.get_cmap("tab10" if len(labels) <= 10 else "tab20")
+    return {name: cmap(i % cmap.N) for i, name in enumerate(labels)}
+
+
+def _legend_beside(ax) -> None:
+    """The legend right of the axes, off the data (make_plots saves with a tight bounding box)."""
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+
+
 def figure3(frames: dict):
     """Best and worst trajectory (delta and omega), predicted vs reference, for each PINN
     configuration's first seed (the paper's figure 3)."""
@@ -49,9 +61,10 @@ def figure3(frames: dict):
             ax.grid(alpha=0.3)
             if row == 1:
                 ax.set_xlabel("t (s)")
-    axes[0, 0].legend(fontsize=7)
     fig.suptitle("Predicted (dashed) against the reference: best and worst trajectory by rel. L2")
     fig.tight_layout()
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), fontsize=7, title="best trajectory (left)",
+               title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.93))
     return fig
 
 
@@ -60,19 +73,21 @@ def work_precision_plot(frames: dict):
     if wp.empty:
         return None
     wp = wp.assign(label=label(wp))
+    colour = _palette(list(wp.loc[~trained(wp), "label"]) + list(wp.loc[trained(wp), "label"]))
     fig, ax = plt.subplots(figsize=(8, 6))
     for name, g in wp[~trained(wp)].groupby("label", sort=False):
         g = g.sort_values("rel_l2_delta")
-        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, label=name)
+        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, color=colour[name], label=name)
     for name, g in wp[trained(wp)].groupby("label", sort=False):
-        ax.scatter(g["rel_l2_delta"], g["median_s"], marker="*", s=140, zorder=3, label=f"{name} (PINN)")
+        ax.scatter(g["rel_l2_delta"], g["median_s"], marker="*", s=140, zorder=3, color=colour[name],
+                   label=f"{name} (PINN)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("rel. L2 error of delta on the 100 x 201 grid")
     ax.set_ylabel("warm query time of the grid (s)")
     ax.set_title("Work-precision: classical tolerance sweeps (lines) and PINNs (stars)")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    _legend_beside(ax)
     fig.tight_layout()
     return fig
 
@@ -84,41 +99,58 @@ def latency_t1_plot(frames: dict):
     lat = lat[lat["kind"] == "single point"]
     if lat.empty:
         return None
+    lat = lat.assign(label=label(lat))
+    colour = _palette(lat["label"])
     fig, ax = plt.subplots(figsize=(8, 5))
-    for name, g in lat.assign(label=label(lat)).groupby("label", sort=False):
+    for name, g in lat.groupby("label", sort=False):
         g = g.sort_values("t1_s")
         ax.errorbar(g["t1_s"], g["median_s"], yerr=[g["median_s"] - g["q25_s"], g["q75_s"] - g["median_s"]],
-                    marker="o", ms=4, capsize=2, label=name, ls="--" if trained(g).any() else "-")
+                    marker="o", ms=4, capsize=2, color=colour[name], label=name,
+                    ls="--" if trained(g).any() else "-")
     ax.set_yscale("log")
     ax.set_xlabel("t1 (s)")
     ax.set_ylabel("warm query time of delta, omega at t1 (s)")
     ax.set_title("Single-time-point query: a classical solver integrates from 0, a PINN evaluates at t1")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
+    _legend_beside(ax)
     fig.tight_layout()
     return fig
 
 
 def identification_plot(frames: dict):
+    """Error of m and d per pair: one colour per solver and config, one marker per data source and
+    noise level, the solvers side by side within each pair; two legends beside the axes."""
+    from matplotlib.lines import Line2D
+
     df = ok(frames.get("identification"))
     if df.empty or "m_rel_error" not in df:
         return None
     df = df.assign(label=label(df), data=identification_data(df))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
-    kinds = list(dict.fromkeys(zip(df["data"], df["noise"])))
-    markers = {kind: marker for kind, marker in zip(sorted(kinds), "os^Dv<>")}
+    specs = list(dict.fromkeys(df["label"]))
+    kinds = sorted(dict.fromkeys(zip(df["data"], df["noise"])))
+    colour = _palette(specs)
+    marker = {kind: m for kind, m in zip(kinds, "os^Dv<>")}
+    width = 0.8 / len(specs)
+    fig, axes = plt.subplots(1, 2, figsize=(14, 5.5), sharey=True)
     for ax, column, name in ((axes[0], "m_rel_error", "m"), (axes[1], "d_rel_error", "d")):
-        for i, (spec, g) in enumerate(df.groupby("label", sort=False)):
-            for (data, noise), h in g.groupby(["data", "noise"]):
-                ax.scatter(h["pair"] + 0.08 * (i - 2), np.maximum(h[column], 1e-12),
-                           marker=markers[(data, noise)], color=f"C{i % 10}",
-                           label=f"{spec}, {data}, noise {noise:.0%}")
+        for i, spec in enumerate(specs):
+            g = df[df["label"] == spec]
+            for kind, h in g.groupby(["data", "noise"]):
+                ax.scatter(h["pair"] + width * (i - (len(specs) - 1) / 2), np.maximum(h[column], 1e-12),
+                           marker=marker[kind], color=colour[spec], s=22)
+        pairs = df.drop_duplicates("pair").sort_values("pair")
+        ax.set_xticks(pairs["pair"], [f"{m:.3g}\n{d:.3g}" for m, d in zip(pairs["m_true"], pairs["d_true"])],
+                      fontsize=7)
         ax.set_yscale("log")
-        ax.set_xlabel("(m, d) pair index")
+        ax.set_xlabel("(m, d) pair: m above, d below")
         ax.set_title(f"relative error of {name}")
         ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=6)
     fig.tight_layout()
+    fig.legend([Line2D([], [], ls="", marker="o", color=colour[spec]) for spec in specs], specs,
+               fontsize=7, title="solver", title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.95))
+    fig.legend([Line2D([], [], ls="", marker=marker[k], color="grey") for k in kinds],
+               [f"{data}, noise {noise:.0%}" for data, noise in kinds],
+               fontsize=7, title="data", title_fontsize=8, loc="lower left", bbox_to_anchor=(1.0, 0.1))
     return fig
 
 
@@ -139,7 +171,7 @@ def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path) -> list[str]:
             continue
         for ext in ("png", "pdf"):
             buffer = io.BytesIO()
-            fig.savefig(buffer, format=ext, dpi=130)
+            fig.savefig(buffer, format=ext, dpi=130, bbox_inches="tight")  # legends beside the axes
             atomic_write(Path(out_dir) / f"{name}.{ext}", buffer.getvalue())
         plt.close(fig)
         written.append(name)
