@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
 from harness.cases import CASES, standard_grid
@@ -120,8 +121,6 @@ def latency_t1_plot(frames: dict):
 def identification_plot(frames: dict):
     """Error of m and d per pair: one colour per solver and config, one marker per data source and
     noise level, the solvers side by side within each pair; two legends beside the axes."""
-    from matplotlib.lines import Line2D
-
     df = ok(frames.get("identification"))
     if df.empty or "m_rel_error" not in df:
         return None

@@ -67,6 +67,19 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()
 
 
+def test_work_precision_times_the_grid_and_the_papers_single_point():
+    from harness.suites.work_precision import work_precision
+
+    settings = replace(QUICK, wp_rtols=(1e-3, 1e-6), latency_budget_s=0.01, min_repeats=2)
+    solver = solvers.make_solver("casadi-cvodes", SMIB_INFERENCE)
+    rows = work_precision(solver, SMIB_INFERENCE, settings)
+    assert [r["rtol"] for r in rows] == [1e-3, 1e-6]
+    assert rows[1]["rel_l2_delta"] < rows[0]["rel_l2_delta"] < 1e-2
+    for r in rows:
+        assert r["point_median_s"] > 0 and r["median_s"] > 0
+        assert r["point_repeats"] >= 2 and r["repeats"] >= 2
+
+
 def test_row_store_survives_a_torn_last_line(tmp_path):
     store = RowStore(tmp_path)
     store.add({"suite": "fit", "value": np.float64(1.5)})

@@ -3,27 +3,27 @@ the single-time-point query at t1 = 10 s (the paper's two speed claims)."""
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import replace
 
 from harness import metrics
 from harness.cases import Case, standard_grid
 from harness.reference import reference
 from harness.runs import Settings
-from harness.suites.latency import T1_S
+from harness.suites.latency import T1_S, queries
 from harness.timing import time_call
 from solvers.base import AbstractSolver
 
 
 def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     """Errors on the grid; median, quartiles and repeats (s) of the grid query and, as `point_*`,
-    of the single-time-point query (t1 = 10 s, the middle P1) of the latency suite."""
+    of the single-time-point query at t1 = 10 s: the latency suite's own two queries."""
     t, P1 = standard_grid(case)
     ref_delta, ref_omega = reference(case, t, P1)
     traj = solver.solve(t, P1)
     row = {"rel_l2_delta": metrics.rel_l2(traj.delta, ref_delta),
            "rel_l2_omega": metrics.rel_l2(traj.omega, ref_omega)}
-    t1, p1 = np.array([T1_S]), P1[P1.size // 2: P1.size // 2 + 1]
-    for prefix, (tq, pq) in (("", (t, P1)), ("point_", (t1, p1))):
+    for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=(T1_S,))):
+        prefix = "point_" if kind == "single point" else ""
         timing = time_call(lambda tq=tq, pq=pq: solver.solve(tq, pq), min_repeats=settings.min_repeats,
                            budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
         row.update({f"{prefix}median_s": timing.median_s, f"{prefix}q25_s": timing.q25_s,
