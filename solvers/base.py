@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import abc
+import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -16,14 +17,55 @@ __all__ = [
     "FitReport",
     "Identification",
     "NotFittedError",
+    "Points",
     "SolveError",
     "Trajectory",
 ]
 
 
+_INF = float("inf")
+_MAX_FLOAT = sys.float_info.max
+_F64 = np.dtype(np.float64)
+_FAST_MAX = 16  # entries checked in pure Python; numpy's reductions cost ~1-2 us each below this
+
+
+def _small_vector(value: Any, lowest: float, scalar: bool) -> tuple[np.ndarray | None, float, float]:
+    """(array, min, max) when `value` is a 1-D float64 array of at most `_FAST_MAX` entries (or,
+    with `scalar`, a Python float), all finite and >= `lowest`; (None, inf, inf) otherwise: the
+    caller then validates with `check_array`, which also produces the error message."""
+    if scalar and type(value) is float:
+        if lowest <= value < _INF:
+            return np.array((value,)), value, value
+        return None, _INF, _INF
+    if type(value) is not np.ndarray or value.dtype is not _F64:  # float64's descriptor is a singleton
+        return None, _INF, _INF
+    items = value.tolist()  # 0-D gives a float, 2-D a list of lists
+    if type(items) is not list or not 0 < len(items) <= _FAST_MAX or type(items[0]) is not float:
+        return None, _INF, _INF
+    lo = hi = items[0]
+    for x in items:
+        if not lowest <= x < _INF:  # NaN fails every comparison
+            return None, _INF, _INF
+        if x < lo:
+            lo = x
+        elif x > hi:
+            hi = x
+    return value, lo, hi
+
+
 class Trajectory(NamedTuple):
     """Solution on a grid: t (n_t,) s, P1 (n_p,) p.u., delta and omega (n_p, n_t) rad and rad/s,
     float64, in the order of the query (t as given, repeats kept)."""
+
+    t: np.ndarray
+    P1: np.ndarray
+    delta: np.ndarray
+    omega: np.ndarray
+
+
+class Points(NamedTuple):
+    """Solution at scattered points: sample i is delta (rad) and omega (rad/s) at time t[i] (s) for
+    P1[i] (p.u.); four float64 arrays of shape (n,)."""
 
     t: np.ndarray
     P1: np.ndarray
@@ -51,6 +93,9 @@ class Identification(NamedTuple):
     message: str
 
 
+_new_trajectory = tuple.__new__
+
+
 class SolveError(RuntimeError):
     """An integration or evaluation failed; the message names the solver and P1."""
 
@@ -73,12 +118,38 @@ class AbstractSolver(abc.ABC):
     5. raise `SolveError` naming itself and P1 when an integration fails.
     An adapter that is only valid on the trained domain sets `bounded_domain = True`: `solve` then
     rejects t outside [0, t_final] or P1 outside [p1_min, p1_max] unless `extrapolate=True`.
+
+    Capabilities are declared, not guessed from option names:
+    - `trains`: `fit` trains a model from a seed (option `seed`); runs repeat it over seeds;
+    - `compiled`: queries run in compiled code (numba, XLA), not a Python-driven integrator loop;
+      the verdicts rank the best Python-driven and the best compiled classical option apart;
+    - `does_work`: False only for the do-nothing adapter that measures the interface itself;
+    - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
+      mode, a compiled query path);
+    - `blas_threads`: the BLAS thread count its queries are timed with, when it is not the run's
+      (the fastest for the adapter, measured; see the class that sets it);
+    - `precision_sweep(rtols)`: the option overrides of the work-precision curve (an adaptive
+      solver: rtol with atol = rtol / 1000; a fixed-step one: its step), [] for a single point.
     """
 
     name: ClassVar[str]
     OPTIONS: ClassVar[Mapping[str, Any]] = {}
     CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     bounded_domain: ClassVar[bool] = False
+    trains: ClassVar[bool] = False
+    compiled: ClassVar[bool] = False
+    does_work: ClassVar[bool] = True
+    blas_threads: ClassVar[int | None] = None
+    VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
+
+    def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
+        """Option overrides, one dict per point of this adapter's work-precision curve, from the
+        run's relative tolerances `rtols`. Default: a tolerance sweep (rtol, atol = rtol / 1000)
+        for an adapter with an `rtol` option, else no curve (the adapter is a single point).
+        A fixed-step adapter overrides this to sweep its step."""
+        if "rtol" not in self.OPTIONS:
+            return []
+        return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
 
     def __init__(self, case: Case, config: str = "default", **options: Any) -> None:
         if not isinstance(case, Case):
@@ -120,28 +191,63 @@ class AbstractSolver(abc.ABC):
 
     def solve(self, t_query, P1, extrapolate: bool = False) -> Trajectory:
         """delta (rad) and omega (rad/s) at times `t_query` (1-D, s, >= 0, any order) for each P1
-        (float or 1-D, p.u.); arrays of shape (len(P1), len(t_query)), float64."""
+        (float or 1-D, p.u.); arrays of shape (len(P1), len(t_query)), float64.
+
+        Small float64 arrays and Python floats take a fast path (checked in pure Python, ~1 us in
+        all); anything else goes through `check_array`. Both reject the same inputs."""
         if not self.fitted:
             raise NotFittedError(f"{self.name}: call fit() (or load()) before solve()")
-        t = check_array("t_query", t_query, nonnegative=True)
-        p1 = check_array("P1", np.atleast_1d(P1))
+        t, _, t_hi = _small_vector(t_query, 0.0, scalar=False)
+        if t is None:
+            t = check_array("t_query", t_query, nonnegative=True)
+            t_hi = float(t.max())
+        p1, p_lo, p_hi = _small_vector(P1, -_MAX_FLOAT, scalar=True)
+        if p1 is None:
+            p1 = check_array("P1", np.atleast_1d(P1))
+            p_lo, p_hi = float(p1.min()), float(p1.max())
         if self.bounded_domain and not extrapolate:
-            self._check_domain(t, p1)
+            self._check_domain(t_hi, p_lo, p_hi)
         delta, omega = self._solve(t, p1)
-        return Trajectory(t, p1, np.asarray(delta, np.float64), np.asarray(omega, np.float64))
+        if type(delta) is not np.ndarray or delta.dtype != _F64:
+            delta, omega = np.asarray(delta, np.float64), np.asarray(omega, np.float64)
+        return _new_trajectory(Trajectory, (t, p1, delta, omega))  # NamedTuple.__new__ is ~3x slower
 
-    def _check_domain(self, t: np.ndarray, p1: np.ndarray) -> None:
+    def _check_domain(self, t_max: float, p_min: float, p_max: float) -> None:
         case = self.case
-        if t.max() > case.t_final:
+        if t_max > case.t_final:
             raise ValueError(
-                f"t_query reaches {t.max()!r} s, outside the trained domain [0, {case.t_final}] s "
+                f"t_query reaches {t_max!r} s, outside the trained domain [0, {case.t_final}] s "
                 "(pass extrapolate=True to evaluate anyway)"
             )
-        if p1.min() < case.p1_min or p1.max() > case.p1_max:
+        if p_min < case.p1_min or p_max > case.p1_max:
             raise ValueError(
-                f"P1 spans [{p1.min()!r}, {p1.max()!r}], outside the trained domain "
+                f"P1 spans [{p_min!r}, {p_max!r}], outside the trained domain "
                 f"[{case.p1_min}, {case.p1_max}] (pass extrapolate=True to evaluate anyway)"
             )
+
+    def solve_points(self, t_query, P1) -> Points:
+        """delta (rad) and omega (rad/s) at the pairs (t_query[i] s, P1[i] p.u.) of two 1-D arrays
+        of one length n (a batch of single-point queries, as a Monte Carlo or an optimiser loop
+        makes them); four float64 arrays of shape (n,). Validated like `solve`."""
+        if not self.fitted:
+            raise NotFittedError(f"{self.name}: call fit() (or load()) before solve_points()")
+        t = check_array("t_query", t_query, nonnegative=True)
+        p1 = check_array("P1", P1)
+        if t.size != p1.size:
+            raise ValueError(f"t_query has {t.size} entries, P1 has {p1.size}: solve_points needs pairs")
+        if self.bounded_domain:
+            self._check_domain(float(t.max()), float(p1.min()), float(p1.max()))
+        delta, omega = self._solve_points(t, p1)
+        return Points(t, p1, np.asarray(delta, np.float64), np.asarray(omega, np.float64))
+
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (n,), at the pairs (t[i], P1[i]). Default: one `_solve` per pair;
+        adapters that can do better (one compiled loop, one vectorised network call) override it."""
+        delta, omega = np.empty(t.size), np.empty(t.size)
+        for i in range(t.size):
+            d, o = self._solve(t[i:i + 1], P1[i:i + 1])
+            delta[i], omega[i] = d[0, 0], o[0, 0]
+        return delta, omega
 
     def identify(self, obs: Observations) -> Identification:
         """Estimate m and d (p.u.) from scattered observations of the case's system."""
