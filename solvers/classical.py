@@ -70,6 +70,7 @@ def identify_least_squares(
     simulate: Simulator, obs: Observations, layout: ObservationLayout,
     m_bounds: tuple[float, float], d_bounds: tuple[float, float], analytic_jacobian: bool,
     n_start: int = 6, xtol: float = 1e-12, diff_step: float | None = None,
+    rank_starts: Simulator | None = None,
 ) -> tuple[float, float, int, bool, str]:
     """Least squares over theta = (log m, log d) of the misfit in delta (and omega when observed).
 
@@ -77,17 +78,19 @@ def identify_least_squares(
     best point of an `n_start` x `n_start` log-spaced grid over the bounds; then a trust-region
     Gauss-Newton (`scipy.optimize.least_squares`) refines it, with the simulator's sensitivities when
     `analytic_jacobian` (else finite differences with the relative step `diff_step`, scipy's
-    default when None). Returns (m, d, simulations, success, message).
+    default when None). `rank_starts` (default `simulate`) ranks the start grid: a cheaper,
+    looser simulator may do, since only the order of the misfits matters there.
+    Returns (m, d, simulations, success, message).
     """
     with_omega = obs.omega is not None
     target = np.concatenate([obs.delta, obs.omega]) if with_omega else obs.delta
     n_sim = 0
 
-    def misfit(theta: np.ndarray, want_jac: bool = False):
+    def misfit(theta: np.ndarray, want_jac: bool = False, run: Simulator = simulate):
         nonlocal n_sim
         n_sim += 1
         m, d = np.exp(theta)
-        delta, omega, jd, jo = simulate(m, d, want_jac)
+        delta, omega, jd, jo = run(m, d, want_jac)
         r = layout.pick(delta)
         if with_omega:
             r = np.concatenate([r, layout.pick(omega)])
@@ -102,7 +105,7 @@ def identify_least_squares(
     upper = np.log([m_bounds[1], d_bounds[1]])
     grid = [np.linspace(lo, hi, n_start + 2)[1:-1] for lo, hi in zip(lower, upper)]
     starts = [np.array([a, b]) for a in grid[0] for b in grid[1]]
-    costs = [np.sum(misfit(theta) ** 2) for theta in starts]
+    costs = [np.sum(misfit(theta, run=rank_starts or simulate) ** 2) for theta in starts]
     theta0 = starts[int(np.nanargmin(costs))]
 
     jac = (lambda theta: misfit(theta, want_jac=True)) if analytic_jacobian else "2-point"
