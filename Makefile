@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-EXTRAS := torch,jax,dask,asv,dev
+EXTRAS := torch,jax,diffrax,numba,dask,asv,dev
 
 .PHONY: setup test bench bench-quick lint clean
 
@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[$(EXTRAS)]"
+	$(BIN)/python -m solvers.numba_cache  # numba kernels into numba's on-disk cache (~30 s, once)
 	touch $@
 
 test: setup
