@@ -42,6 +42,11 @@ class Evaluator(abc.ABC):
         """delta (rad) and omega (rad/s), each (len(P1), len(t)), for t (s) and P1 (p.u.), 1-D
         float64 numpy; float64 or float32 numpy out (the network's dtype)."""
 
+    @abc.abstractmethod
+    def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """delta (rad) and omega (rad/s) at the pairs (t[i] s, P1[i] p.u.), each (n,), one
+        vectorised evaluation; dtypes as `__call__`."""
+
 
 @dataclass(frozen=True)
 class Trainer:
@@ -78,12 +83,23 @@ class PinnSolver(AbstractSolver):
 
     Options: every `PinnConfig` field (seed, max_seconds, max_iterations, ...; the named CONFIGS
     set several), threads (2: the backend's intra-op threads; the optimiser's BLAS runs on one, see `_train`),
-    progress (None: a tqdm bar on a terminal, quiet under pytest / CI / a pipe; True / False).
+    progress (None: a tqdm bar on a terminal, quiet under pytest / CI / a pipe; True / False),
+    query ("framework": `solve` runs the backend's own evaluator, in the config's dtype;
+    "numba": `solvers.pinn.compiled.NumbaEvaluator`, the same network compiled by numba in float64,
+    one native call a query, on `threads` threads for large grids; compiled within `fit` / `load`.
+    Training does not depend on it. Both give the same numbers to ~1e-15 for float64 networks;
+    for a float32 network "numba" evaluates the float32-trained weights in float64, so it differs
+    from "framework" by float32 rounding, ~1e-6 of the largest value).
     Deterministic for a given seed and thread count.
     """
 
     bounded_domain: ClassVar[bool] = True
-    OPTIONS: ClassVar[dict[str, Any]] = {"threads": 2, "progress": None, **PinnConfig().to_json()}
+    trains: ClassVar[bool] = True
+    # the compiled query path of the same trained model (the model cache ignores `query`)
+    VARIANTS: ClassVar[tuple[dict[str, Any], ...]] = ({"query": "numba"},)
+    OPTIONS: ClassVar[dict[str, Any]] = {"threads": 2, "progress": None, "query": "framework",
+                                         **PinnConfig().to_json()}
+    QUERIES: ClassVar[tuple[str, ...]] = ("framework", "numba")
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
 
     def _check_options(self) -> None:
@@ -94,6 +110,9 @@ class PinnSolver(AbstractSolver):
             raise ValueError(f"option threads must be an integer >= 1, got {threads!r}")
         if self.options["progress"] not in (None, True, False):
             raise ValueError(f"option progress must be None, True or False, got {self.options['progress']!r}")
+        if self.options["query"] not in self.QUERIES:
+            raise ValueError(f"option query must be one of {', '.join(map(repr, self.QUERIES))}, "
+                             f"got {self.options['query']!r}")
 
     # ---- backend hooks ---------------------------------------------------------------------
 
@@ -147,13 +166,13 @@ class PinnSolver(AbstractSolver):
                 bar.close()
 
     def _fit(self) -> FitReport:
-        deadline = time.perf_counter() + self.pinn_config.max_seconds
+        deadline = self.pinn_config.deadline(time.perf_counter())
         note = self._prepare_backend()
         config = self.pinn_config
         arch = Architecture.of(config, self.case)
         problem = spec.forward_problem(config, self.case)
         theta0 = spec.init_theta(arch, config.seed)
-        evaluator = self._make_evaluator(arch, config.dtype)  # compiled within the time budget
+        evaluator = self._query_evaluator(arch)  # compiled within the time budget
         result = self._train(arch, problem, theta0, config.max_iterations, deadline, "fit")
         self._set_model(arch, result.theta, evaluator)
         return FitReport(seconds=0.0, iterations=result.iterations, loss=result.loss,
@@ -161,15 +180,26 @@ class PinnSolver(AbstractSolver):
 
     def _set_model(self, arch: Architecture, theta: np.ndarray, evaluator: Evaluator | None = None) -> None:
         self.arch, self.theta = arch, np.asarray(theta, np.float64)
-        self._evaluate = evaluator or self._make_evaluator(arch, self.pinn_config.dtype)
+        self._evaluate = evaluator or self._query_evaluator(arch)
         self._evaluate.load(self.theta)
+
+    def _query_evaluator(self, arch: Architecture) -> Evaluator:
+        """The evaluator the `query` option names, compiled and warmed up."""
+        if self.options["query"] == "numba":
+            from solvers.pinn.compiled import NumbaEvaluator
+
+            return NumbaEvaluator(arch, threads=self.options["threads"])
+        return self._make_evaluator(arch, self.pinn_config.dtype)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self._evaluate(t, P1)
 
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._evaluate.points(t, P1)
+
     def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
         config = self.pinn_config
-        deadline = time.perf_counter() + config.id_max_seconds
+        deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
         arch = Architecture.of(config, self.case, identification=True,
                                p_range=spec.identification_p_range(self.case, obs))

@@ -110,6 +110,7 @@ class _JitEvaluator(Evaluator):
         self.x64 = jax.enable_x64(dtype == "float64")
         # one stacked (2, n_p, n_t) result: one device-to-host conversion per query, not two
         self.fn = jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t[None, :], p[:, None], OPS)))
+        self.paired = jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t, p, OPS)))
         self.load(np.zeros(arch.n_params))
         t_grid = np.linspace(arch.t_lo, arch.t_hi, 201)
         p_grid = np.linspace(arch.p_lo, arch.p_hi, 100)
@@ -124,4 +125,10 @@ class _JitEvaluator(Evaluator):
         with self.x64:
             out = self.fn(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
         both = np.array(out)  # a writeable copy, like torch-pinn's results (np.asarray is read-only)
+        return both[0], both[1]
+
+    def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        with self.x64:
+            out = self.paired(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
+        both = np.array(out)
         return both[0], both[1]

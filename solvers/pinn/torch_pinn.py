@@ -107,12 +107,19 @@ class _FastForward(Evaluator):
         self(np.array([0.5 * arch.t_hi]), np.array([0.5 * (arch.p_lo + arch.p_hi)]))  # warm-up
 
     def __call__(self, t_np: np.ndarray, p_np: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._forward(t_np, p_np, paired=False)
+
+    def points(self, t_np: np.ndarray, p_np: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._forward(t_np, p_np, paired=True)
+
+    def _forward(self, t_np: np.ndarray, p_np: np.ndarray, paired: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The grid (len(P1), len(t)), or with `paired` the points (t[i], P1[i]), shape (n,)."""
         # No autograd context needed: no tensor here requires grad, so nothing is recorded.
-        n_t, n_p = t_np.shape[0], p_np.shape[0]
+        n_t, n_p = (1, p_np.shape[0]) if paired else (t_np.shape[0], p_np.shape[0])
         t_np, p_np = t_np.astype(self.npdtype, copy=False), p_np.astype(self.npdtype, copy=False)
         t = torch.from_numpy(t_np)
         z = torch.addcmul(torch.addcmul(self.b0, torch.from_numpy(p_np).view(n_p, 1, 1), self.w_p),
-                          t.view(1, n_t, 1), self.w_t)
+                          t.view(n_p if paired else 1, n_t, 1), self.w_t)
         h = _tanh_(z.view(n_p * n_t, -1))
         h_t = torch.addcmul(self.w_t, h * h, self.w_t, value=-1.0) if self.tangent else None
         for b, w in self.hidden:
@@ -120,9 +127,10 @@ class _FastForward(Evaluator):
             h = _tanh_(torch.addmm(b, h, w))
             if self.tangent:
                 h_t = z_t.addcmul_(h * h, z_t, value=-1.0)
-        out = torch.addmm(self.b_out, h, self.w_out).view(n_p, n_t, -1)
+        shape = (n_p,) if paired else (n_p, n_t)
+        out = torch.addmm(self.b_out, h, self.w_out).view(*shape, -1)
         n1 = out[..., 0]
-        x = torch.mm(h_t, self.w_out).view(n_p, n_t) if self.tangent else out[..., 1]
+        x = torch.mm(h_t, self.w_out).view(*shape) if self.tangent else out[..., 1]
         if not self.arch.hard_ic:
             return n1.numpy(), x.numpy()
         # delta = a0 + a1 N_1, omega = b0 + b1 N_1 + b2 X (X = dN_1/dt, or N_2 for two outputs),
