@@ -8,7 +8,6 @@ from benchmarks._common import (
     IDENTIFICATION_CASE,
     PARAM_NAMES,
     PARAMS,
-    QUICK_MODE,
     SETUP_CACHE_TIMEOUT,
     SKIP_PARAMS,
     cached_entry,
@@ -36,17 +35,15 @@ class Identify:
         if (solver, config) not in _READY:
             adapter = spec.make(IDENTIFICATION_CASE)
             obs = identification_observations()
-            if spec.seed is None and not QUICK_MODE:
-                adapter.identify(obs)  # warm-up: integrators with sensitivities, caches
+            adapter.identify(obs)  # warm-up of every adapter alike: JIT, integrators, caches
             _READY[(solver, config)] = (adapter, obs)
         self.solver, self.obs = _READY[(solver, config)]
 
     def time_identify(self, solver, config):
-        """Wall time (s) of `identify` on the identification suite's first observations (pair 0 of
-        the quick run's pairs, no noise, 100 samples). An ODE solver is warmed up with one untimed
-        identification first (not under `make asv-quick`, to save time); for an adapter that trains,
-        each call is a training within SETTINGS' budget (20 s, 5 s under `make asv-quick`), JIT
-        compilation included."""
+        """Wall time (s) of a warm `identify` on the identification suite's first observations (pair 0
+        of the quick run's pairs, no noise, 100 samples): every adapter identifies once untimed first
+        (compilation, caches); for an adapter that trains, each call is a training of SETTINGS'
+        iterations (400, 20 under `make asv-quick`)."""
         self.solver.identify(self.obs)
 
 

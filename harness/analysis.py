@@ -12,14 +12,22 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
+    "COMPILED",
     "GRID_QUERY",
+    "LITERATURE",
     "POINT_QUERY",
+    "PYTHON_DRIVEN",
+    "RUNGS",
     "break_even",
+    "compiled",
+    "crossover_t1",
     "fastest_classical",
+    "first_seed",
     "fmt",
     "fmt_range",
     "identification_data",
     "label",
+    "ladder",
     "matched_speedups",
     "ok",
     "pareto_front",
@@ -131,26 +139,110 @@ def break_even(fit_s: float, classical_s: float, pinn_s: float) -> float:
     return fit_s / gain if gain > 0 else float("inf")
 
 
-def fastest_classical(frames: dict, query: str, max_rel_l2: float) -> tuple[str, float] | None:
+# The rungs of the verdict ladder: which classical options each one may pick from.
+LITERATURE = "literature baseline (scipy RK45, one solve per P1)"
+PYTHON_DRIVEN = "best Python-driven classical"
+COMPILED = "best compiled classical"
+RUNGS = (LITERATURE, PYTHON_DRIVEN, COMPILED)
+LITERATURE_SOLVER = "scipy-rk45"  # looped, as MATLAB ode45 was in the paper's 28x and 87x
+
+
+def compiled(df: pd.DataFrame) -> pd.Series:
+    """Rows of adapters whose queries run in compiled code (rows before the column: none)."""
+    if "compiled" not in df:
+        return pd.Series(False, index=df.index)
+    return df["compiled"].fillna(False).astype(bool)
+
+
+def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
+    """Classical rows that rung `rung` may pick (None: every classical row)."""
+    classical = ~trained(df) & (df["solver"] != "interface-overhead")
+    if rung is None:
+        return classical
+    if rung == LITERATURE:
+        return classical & (df["solver"] == LITERATURE_SOLVER) & (df["variant"].fillna("") == "")
+    if rung == PYTHON_DRIVEN:
+        return classical & ~compiled(df)
+    if rung == COMPILED:
+        return classical & compiled(df)
+    raise ValueError(f"unknown rung {rung!r}; known: {', '.join(RUNGS)}")
+
+
+def fastest_classical(frames: dict, query: str, max_rel_l2: float, rung: str | None = None
+                      ) -> tuple[str, float] | None:
     """The fastest classical option for `query` whose delta rel. L2 is at most `max_rel_l2`:
     (label, median seconds), or None. Candidates: each classical spec of the accuracy and latency
-    suites and each point of the work-precision tolerance sweeps (labelled with its rtol and atol,
-    which time the grid and the t1 = 10 s query), so that a PINN is compared with the strongest
-    classical option measured."""
+    suites and, for the grid and the t1 = 10 s query, each point of the work-precision sweeps
+    (labelled with its setting), so that a PINN is compared with the strongest classical option
+    measured; `rung` restricts them to one rung of the ladder (`RUNGS`; None: all)."""
     candidates: list[tuple[str, float]] = []
     acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
     if not acc.empty and not lat.empty:
-        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & ~trained(acc)]
+        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & _on_rung(acc, rung)]
         good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
-        lat = lat[(lat["query"] == query) & ~trained(lat)]
+        lat = lat[(lat["query"] == query) & _on_rung(lat, rung)]
         lat = lat.assign(label=label(lat))
         candidates += [(name, float(s)) for name, s in zip(lat["label"], lat["median_s"]) if name in good]
     wp = ok(frames.get("work_precision"))
     column = {GRID_QUERY: "median_s", POINT_QUERY: "point_median_s"}.get(query)
     if column in wp:  # rows of runs before the point timing have no point_median_s
-        wp = wp[~trained(wp) & (wp["rel_l2_delta"] <= max_rel_l2) & wp[column].notna()]
-        variant = wp["variant"].fillna("").astype(str).map(lambda v: f"{v}, " if v else "")
-        names = wp["solver"] + " [" + variant + "rtol=" + wp["rtol"].map("{:g}".format) + ", atol=" \
-            + wp["atol"].map("{:g}".format) + "]"
-        candidates += [(name, float(s)) for name, s in zip(names, wp[column])]
+        wp = wp[_on_rung(wp, rung) & (wp["rel_l2_delta"] <= max_rel_l2) & wp[column].notna()]
+        for (_, row), name in zip(wp.iterrows(), label(wp)):
+            setting = row.get("setting")
+            if not isinstance(setting, str):  # runs before the column: tolerance sweeps only
+                setting = f"rtol={row['rtol']:g}, atol={row['atol']:g}" if pd.notna(row.get("rtol")) else ""
+            if setting:
+                candidates.append((f"{name[:-1]}, {setting}]", float(row[column])))
     return min(candidates, key=lambda c: c[1]) if candidates else None
+
+
+def first_seed(df: pd.DataFrame) -> pd.DataFrame:
+    """Classical rows and, of each trained spec, the rows of its first (lowest) seed: the seed rule
+    of every verdict (error, latency and fit time all from the one model that was timed)."""
+    if df.empty:
+        return df
+    seed = df["seed"].fillna(-1).astype(int)
+    lowest = seed.groupby(label(df)).transform("min")
+    return df[seed == lowest]
+
+
+def ladder(frames: dict, query: str) -> pd.DataFrame:
+    """The verdict ladder of `query`: one row per PINN spec (configuration and query path, first
+    seed): its delta rel. L2 on the grid, its query time, and for each rung of `RUNGS` the
+    fastest classical option of that rung at least as accurate, its time and the PINN's speed-up
+    (classical / PINN time; > 1: the PINN is faster; NaN when the rung has nothing as accurate)."""
+    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if acc.empty or lat.empty:
+        return pd.DataFrame()
+    acc = first_seed(acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & trained(acc)])
+    error = dict(zip(label(acc), acc["rel_l2"]))
+    lat = first_seed(lat[(lat["query"] == query) & trained(lat)])
+    fit = first_seed(ok(frames.get("fit")))
+    fit_s = dict(zip(label(fit), fit["fit_s"])) if not fit.empty else {}
+    rows = []
+    for name, pinn_s in zip(label(lat), lat["median_s"]):
+        err = error.get(name, float("nan"))
+        row = {"query": query, "pinn": name, "pinn_rel_l2": err, "pinn_s": float(pinn_s),
+               "fit_s": fit_s.get(name, float("nan"))}
+        for rung in RUNGS:
+            best = fastest_classical(frames, query, err, rung) if not math.isnan(err) else None
+            row[f"{rung}: option"] = best[0] if best else "none as accurate"
+            row[f"{rung}: s"] = best[1] if best else float("nan")
+            row[f"{rung}: speedup"] = best[1] / pinn_s if best else float("nan")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def crossover_t1(t1: np.ndarray, classical_s: np.ndarray, pinn_s: np.ndarray) -> tuple[str, float]:
+    """Where a classical single-point cost (rising with t1: it integrates from 0) crosses a PINN's
+    (about flat), from their medians at the same t1 values (s). Returns (how, t1 s): "classical
+    cheaper everywhere" / "PINN cheaper everywhere" (NaN), or "crossover" at the t1 where the
+    difference changes sign, linearly interpolated between the two measured t1 around it."""
+    order = np.argsort(t1)
+    t1, gap = np.asarray(t1, float)[order], (np.asarray(classical_s, float) - np.asarray(pinn_s, float))[order]
+    if (gap < 0).all():
+        return "classical cheaper everywhere", float("nan")
+    if (gap > 0).all():
+        return "PINN cheaper everywhere", float("nan")
+    i = int(np.argmax(np.sign(gap[1:]) != np.sign(gap[:-1])))
+    return "crossover", float(t1[i] - gap[i] * (t1[i + 1] - t1[i]) / (gap[i + 1] - gap[i]))

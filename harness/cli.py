@@ -98,7 +98,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not args.resume:
         store.clear()
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
-    meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": sys.argv[1:]}
+    from solvers import SOLVERS
+
+    blas = {name: cls.blas_threads for name, cls in SOLVERS.items() if cls is not None and cls.blas_threads}
+    meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": sys.argv[1:],
+            "blas_threads_by_adapter": blas or "as pinned"}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)

@@ -118,6 +118,31 @@ def latency_t1_plot(frames: dict):
     return fig
 
 
+def crossover_plot(frames: dict):
+    """Single-point cost against t1 for the fastest PINN path and the fastest compiled classical
+    option at least as accurate (`harness.verdict.crossover`), with the crossover if there is one."""
+    from harness.verdict import crossover
+
+    x = crossover(frames)
+    if x is None:
+        return None
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(x["t1_s"], 1e6 * x["classical_s"], marker="o", label=f"{x['classical']} (classical, compiled)")
+    ax.plot(x["t1_s"], 1e6 * x["pinn_s"], marker="*", ms=10, ls="--", label=f"{x['pinn']} (PINN)")
+    if x["how"] == "crossover":
+        ax.axvline(x["t1_cross_s"], color="grey", lw=1)
+        ax.annotate(f"crossover t1 = {x['t1_cross_s']:.3g} s", (x["t1_cross_s"], ax.get_ylim()[1]),
+                    xytext=(4, -14), textcoords="offset points", fontsize=8)
+    ax.set_yscale("log")
+    ax.set_xlabel("t1 (s)")
+    ax.set_ylabel("warm solve() of delta, omega at t1 (us)")
+    ax.set_title(f"Single point: {x['how']}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def identification_plot(frames: dict):
     """Error of m and d per pair: one colour per solver and config, one marker per data source and
     noise level, the solvers side by side within each pair; two legends beside the axes."""
@@ -154,7 +179,7 @@ def identification_plot(frames: dict):
 
 
 PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1": latency_t1_plot,
-         "identification": identification_plot}
+         "crossover": crossover_plot, "identification": identification_plot}
 
 
 def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path) -> list[str]:

@@ -7,7 +7,6 @@ report DIR` re-renders the same tables and plots from `DIR/rows.jsonl`.
 from __future__ import annotations
 
 import datetime
-import importlib.metadata
 import json
 import os
 import platform
@@ -27,16 +26,20 @@ from harness.analysis import (
     fmt_range,
     identification_data,
     label,
+    ladder,
     matched_speedups,
     ok,
     trained,
 )
+from harness.model_cache import library_versions
 from harness.paper import paper_table
 from harness.store import atomic_write
+from harness.suites.accuracy import OFF_TRAINING
+from harness.verdict import ladder_table, verdict_lines
 
 __all__ = ["build_tables", "metadata", "write_report"]
 
-LIBRARIES = ("numpy", "scipy", "pandas", "casadi", "torch", "jax", "jaxlib", "optax")
+LIBRARIES = ("numpy", "scipy", "pandas", "casadi", "torch", "jax", "jaxlib", "optax", "numba", "diffrax")
 TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref")
 
 
@@ -74,12 +77,7 @@ def git_commit(repo: Path, outputs: Sequence[Path] = ()) -> str:
 
 def metadata(threads: int, outputs: Sequence[Path] = ()) -> dict:
     """Machine, CPU, threads, library versions, commit (see `git_commit`) and date of a run."""
-    versions = {}
-    for lib in LIBRARIES:
-        try:
-            versions[lib] = importlib.metadata.version(lib)
-        except importlib.metadata.PackageNotFoundError:
-            versions[lib] = "not installed"
+    versions = library_versions(LIBRARIES)
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": platform.node(), "platform": platform.platform(), "cpu": _cpu(),
@@ -116,11 +114,14 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
     for (case, name), g in df.groupby(["case", "label"], sort=False):
         row = {"case": case, "solver": name}
         for quantity, against, title in (("delta", "reference", "delta"), ("omega", "reference", "omega"),
+                                         ("delta", OFF_TRAINING, "delta off the training points"),
                                          ("delta", "paper ode45 data", "delta vs paper data")):
             sel = g[(g["quantity"] == quantity) & (g["against"] == against)]
             if sel.empty:
                 continue
             row[f"{title} rel. L2"] = fmt_range(sel["rel_l2"])
+            if against == OFF_TRAINING:
+                continue
             row[f"{title} max abs"] = fmt_range(sel["max_abs"])
             if against == "reference":
                 row[f"{title} worst trajectory rel. L2"] = fmt_range(sel["worst_trajectory_rel_l2"])
@@ -128,16 +129,28 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _latency_cell(row: pd.Series) -> str:
+    """"median ±half-IQR%" in ms; "(1 run)" instead of a spread for a call timed once; the cost
+    per point for a batch of single points; the status for a query that was not timed."""
+    if row["status"] != "ok":
+        return str(row["status"]).replace("skipped: ", "")
+    cell = fmt(1e3 * row["median_s"])
+    if row.get("repeats", 2) == 1:
+        cell += " (1 run)"
+    else:
+        cell += f" ±{fmt(100 * (row['q75_s'] - row['q25_s']) / (2 * row['median_s']), 2)}%"
+    if row.get("kind") == "points batch":
+        cell += f" ({fmt(1e6 * row['median_s'] / row['n_trajectories'])} us/point)"
+    return cell
+
+
 def _latency_table(frames: dict) -> pd.DataFrame:
     df = frames.get("latency")
     if df is None or df.empty or "query" not in df:
         return pd.DataFrame()
-    df = df[df["query"].notna()].assign(label=label(df[df["query"].notna()]))
-    spread = 100 * (df["q75_s"] - df["q25_s"]) / (2 * df["median_s"])
-    timed = [f"{fmt(m * 1e3)} ±{fmt(p, 2)}%" for m, p in zip(df["median_s"], spread)]
-    cell = np.where(df["status"] == "ok", timed, df["status"].str.replace("skipped: ", ""))
-    wide = df.assign(cell=cell).pivot_table(index=["case", "label"], columns="query", values="cell",
-                                            aggfunc="first", sort=False)
+    df = df[df["query"].notna()]
+    df = df.assign(label=label(df), cell=[_latency_cell(r) for _, r in df.iterrows()])
+    wide = df.pivot_table(index=["case", "label"], columns="query", values="cell", aggfunc="first", sort=False)
     wide.columns = [f"{c} (ms)" for c in wide.columns]
     return wide.reset_index().rename(columns={"label": "solver"})
 
@@ -179,21 +192,16 @@ def _matched_table(frames: dict) -> pd.DataFrame:
 
 
 def _break_even_table(frames: dict) -> pd.DataFrame:
-    fit, acc, lat = ok(frames.get("fit")), ok(frames.get("accuracy")), ok(frames.get("latency"))
-    if fit.empty or acc.empty or lat.empty:
-        return pd.DataFrame()
-    fit, lat = fit[trained(fit)], lat[trained(lat)]
-    acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & trained(acc)]
+    """Per PINN spec (first seed, the seed rule of every verdict) and the grid and t1 = 10 s
+    queries: training time, the fastest classical option at least as accurate (any rung) and the
+    number of queries after which training pays off."""
     rows = []
     for query in (GRID_QUERY, POINT_QUERY):
-        for _, q in lat[lat["query"] == query].iterrows():
-            name = label(q.to_frame().T).iloc[0]
-            fit_s = fit[label(fit) == name]["fit_s"].median()
-            error = acc[label(acc) == name]["rel_l2"].median()
-            best = fastest_classical(frames, query, error)
-            n_star = break_even(fit_s, best[1], q["median_s"]) if best else float("nan")
-            rows.append({"PINN": name, "query": query, "training (s)": fmt(fit_s), "delta rel. L2": fmt(error),
-                         "PINN query (ms)": fmt(1e3 * q["median_s"]),
+        for _, r in ladder(frames, query).iterrows():
+            best = fastest_classical(frames, query, r["pinn_rel_l2"])
+            n_star = break_even(r["fit_s"], best[1], r["pinn_s"]) if best else float("nan")
+            rows.append({"PINN (first seed)": r["pinn"], "query": query, "training (s)": fmt(r["fit_s"]),
+                         "delta rel. L2": fmt(r["pinn_rel_l2"]), "PINN query (ms)": fmt(1e3 * r["pinn_s"]),
                          "fastest classical at least as accurate": best[0] if best else "none",
                          "its query (ms)": fmt(1e3 * best[1]) if best else "n/a",
                          "break-even N* (queries)": "never" if n_star == float("inf") else
@@ -211,7 +219,11 @@ def _status_table(frames: dict) -> pd.DataFrame:
 
 
 TABLES = {
-    "paper": ("The paper's figures beside ours (same machine, same run)", paper_table),
+    "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
+               "error, fit time and query time of one model)"), paper_table),
+    "ladder": (("Who wins each query at matched accuracy: each PINN (first seed; `query=numba` is its "
+                "compiled query path) against the fastest classical option at least as accurate on each "
+                "rung"), ladder_table),
     "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
                   "(median [min, max] over seeds for PINNs)"), _accuracy_table),
     "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
@@ -249,16 +261,23 @@ def _header(meta: dict) -> str:
     get = lambda key: meta.get(key, "?")
     return (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}, "
             f"settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
-            f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}.\n\n")
+            f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}, "
+            f"numba {get('version_numba')}, diffrax {get('version_diffrax')}.\n\n")
 
 
-HEADLINE = ("paper", "matched", "break_even", "accuracy", "identification")
+HEADLINE = ("paper", "ladder", "break_even", "accuracy", "identification")
+
+
+def _verdict(frames: dict) -> str:
+    lines = verdict_lines(frames)
+    return "### Verdict of this run\n\n" + "".join(f"- {line}\n" for line in lines) + "\n" if lines else ""
 
 
 def headline_markdown(rows: list[dict], meta: dict) -> str:
     """The headline tables of a run (for the project README), in Markdown."""
-    tables = build_tables(suite_frames(rows))
-    return _header(meta) + "\n".join(f"### {title}\n\n{table.to_markdown(index=False)}\n"
+    frames = suite_frames(rows)
+    tables = build_tables(frames)
+    return _header(meta) + _verdict(frames) + "\n".join(f"### {title}\n\n{table.to_markdown(index=False)}\n"
                                       for name, (title, table) in tables.items() if name in HEADLINE)
 
 
@@ -271,7 +290,7 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
         csv = df.drop(columns=[c for c in TRAJECTORY_COLUMNS if c in df])
         atomic_write(out_dir / f"{suite}.csv", csv.to_csv(index=False))
     tables = build_tables(frames)
-    markdown = _header(meta) + "\n".join(
+    markdown = _header(meta) + _verdict(frames) + "\n".join(
         f"### {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables.values())
     latex = "\n".join(f"% {title}\n{table.to_latex(index=False, escape=True)}" for title, table in tables.values())
     atomic_write(out_dir / "tables.md", markdown)

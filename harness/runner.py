@@ -11,7 +11,8 @@ from harness.model_cache import Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite
-from solvers import SOLVERS, UNAVAILABLE
+from harness.timing import blas_threads
+from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
 
 __all__ = ["plan", "run_suites"]
@@ -37,7 +38,9 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> Ite
     targets += list(own.items())
     for case, group in targets:
         for spec in specs:
-            chosen = [s for s in group if s.every_seed or _first_seed(spec, specs)]
+            cls = solver_class(spec.solver)
+            chosen = [s for s in group if (s.every_seed or _first_seed(spec, specs))
+                      and (cls is None or s.applies(cls))]
             if chosen:
                 yield case, spec, chosen
 
@@ -59,12 +62,12 @@ def fit_or_load(solver: AbstractSolver, settings: Settings) -> FitReport:
     """`fit()`, or load the trained model from the cache (with the training cost it had)."""
     cacheable = Persistable(solver) and settings.cache_dir is not None
     if cacheable and not settings.retrain:
-        report = load_cached(solver, settings.cache_dir, settings.threads)
+        report = load_cached(solver, settings.cache_dir)
         if report is not None:
             return report._replace(message=f"{report.message} (cached model)".strip())
     report = solver.fit()
     if cacheable:
-        store_cached(solver, report, settings.cache_dir, settings.threads)
+        store_cached(solver, report, settings.cache_dir)
     return report
 
 
@@ -85,41 +88,52 @@ def run_suites(
     done = {_unit_key(r) for r in store.rows() if not str(r.get("status", "")).startswith("failed")} if resume else set()
     bar = _progress_bar(sum(len(group) + 1 for _, _, group in units), progress)
     for case, spec, group in units:
+        cls = solver_class(spec.solver)
         base = {"case": case.name, **spec.key(), "threads": settings.threads}
+        if cls is not None:
+            base.update(trains=cls.trains, compiled=cls.compiled,
+                        blas_threads=cls.blas_threads or settings.threads)
         todo = [s for s in group if _unit_key({"suite": s.name, **base}) not in done]
         if bar:
             bar.set_description(f"{spec.label} {case.name}")
             bar.update(1 + len(group) - len(todo))
         if not todo:
             continue
-        if SOLVERS.get(spec.solver) is None:
+        if cls is None:
             for suite in todo:
                 store.add({"suite": suite.name, **base, "status": UNAVAILABLE[spec.solver]})
             continue
-        try:
-            solver = spec.make(case)
-            if any(s.needs_fit for s in todo):
-                report = fit_or_load(solver, settings)
-                store.add({"suite": "fit", **base, "status": "ok", "fit_s": report.seconds,
-                           "iterations": report.iterations, "loss": report.loss, "message": report.message})
-        except Exception as exc:  # noqa: BLE001 - recorded as a row, the run goes on
-            traceback.print_exc()
-            for suite in ["fit", *(s.name for s in todo)]:
-                store.add({"suite": suite, **base, "status": _failure(exc)})
-            if bar:
-                bar.update(len(todo))
-            continue
-        for suite in todo:
-            if bar:
-                bar.set_description(f"{spec.label} {case.name} {suite.name}")
-            try:
-                rows = suite.run(solver, case, settings)
-            except Exception as exc:  # noqa: BLE001
-                traceback.print_exc()
-                rows = [{"status": _failure(exc)}]
-            for row in rows:
-                store.add({"suite": suite.name, **base, "status": "ok", **row})
-            if bar:
-                bar.update(1)
+        with blas_threads(cls.blas_threads):
+            _run_unit(spec, case, todo, base, settings, store, bar)
     if bar:
         bar.close()
+
+
+def _run_unit(spec: SolverSpec, case: Case, todo: list[Suite], base: dict, settings: Settings,
+              store: RowStore, bar) -> None:
+    """Build, fit (or load) and run the suites `todo` of one (spec, case); failures become rows."""
+    try:
+        solver = spec.make(case)
+        if any(s.needs_fit for s in todo):
+            report = fit_or_load(solver, settings)
+            store.add({"suite": "fit", **base, "status": "ok", "fit_s": report.seconds,
+                       "iterations": report.iterations, "loss": report.loss, "message": report.message})
+    except Exception as exc:  # noqa: BLE001 - recorded as a row, the run goes on
+        traceback.print_exc()
+        for suite in ["fit", *(s.name for s in todo)]:
+            store.add({"suite": suite, **base, "status": _failure(exc)})
+        if bar:
+            bar.update(len(todo))
+        return
+    for suite in todo:
+        if bar:
+            bar.set_description(f"{spec.label} {case.name} {suite.name}")
+        try:
+            rows = suite.run(solver, case, settings)
+        except Exception as exc:  # noqa: BLE001
+            traceback.print_exc()
+            rows = [{"status": _failure(exc)}]
+        for row in rows:
+            store.add({"suite": suite.name, **base, "status": "ok", **row})
+        if bar:
+            bar.update(1)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION, Case
-from solvers import SOLVERS, make_solver
+from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 
 __all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs"]
@@ -58,7 +58,9 @@ class Settings:
     """Knobs of a run. Timings are medians of warm repeats within `latency_budget_s` seconds per
     measurement (at least `min_repeats`); calls estimated to take longer than `max_call_s` are
     skipped with a row that says so. Adapters that train run once per seed in `seeds`, except the
-    configs in `first_seed_only`; `pinn_options` override their budgets. Identification runs over `pairs` x `noise_levels`
+    configs in `first_seed_only`; `pinn_options` override their budgets (iterations, so that a seed
+    gives the same network on a busy machine). Latency: `throughput_sizes` trajectories of 201 times, the
+    single point at each of `t1_values_s`, and `points_batch` scattered single points in one call. Identification runs over `pairs` x `noise_levels`
     (relative Gaussian noise) with `n_u` samples, except for configs in `skip_identify_configs`.
     `threads` is recorded with the results."""
 
@@ -70,8 +72,9 @@ class Settings:
     seeds: tuple[int, ...] = (0, 1, 2)
     first_seed_only: tuple[str, ...] = ()
     pinn_options: dict = field(default_factory=dict)
-    throughput_sizes: tuple[int, ...] = (1, 10, 100, 1000)
+    throughput_sizes: tuple[int, ...] = (1, 10, 100, 1000, 10000)
     t1_values_s: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
+    points_batch: int = 10000
     pairs: tuple[tuple[float, float], ...] = (PAPER_PAIR, *IDENTIFICATION_PAIRS)
     noise_levels: tuple[float, ...] = (0.0, 0.01)
     n_u: int = 100
@@ -87,24 +90,22 @@ class Settings:
 
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, seeds=(0,),
-    pinn_options={"max_seconds": 10.0, "id_max_seconds": 10.0}, throughput_sizes=(1, 100), t1_values_s=(1.0, 10.0, 20.0),
+    pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
+    t1_values_s=(1.0, 10.0, 20.0), points_batch=1000,
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
 # make bench: every suite within ~30 minutes on 2 cores. Three seeds of each configuration of the
 # paper and of `default`, one of the extra `two-outputs`; identification on the paper's own case
 # (m = 0.25, d = 0.15, also from the paper's ode45 data) and one of the 10 pairs, PINN identification
-# budgets of 20 s, not for the two-output networks (the paper identifies with one output only);
+# budgets of each configuration (iterations), not for the two-output networks (the paper identifies with one
+# output only);
 # --full runs everything: every seed, the paper's case and the 10 pairs, both noise levels.
 DEFAULT = Settings(
     first_seed_only=("two-outputs",),
-    pairs=(PAPER_PAIR, IDENTIFICATION_PAIRS[4]), pinn_options={"id_max_seconds": 20.0},
+    pairs=(PAPER_PAIR, IDENTIFICATION_PAIRS[4]),
     skip_identify_configs=("paper-two-outputs", "two-outputs"),
 )
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0)
-
-
-def _trains(cls) -> bool:
-    return "seed" in cls.OPTIONS
 
 
 def default_specs(
@@ -112,8 +113,9 @@ def default_specs(
     settings: Settings = DEFAULT,
 ) -> list[SolverSpec]:
     """Every registered adapter (installed or not: missing ones become 'skipped' rows) in each of
-    its named configs; adapters with a `batch` option also in the stacked mode; adapters that train
-    once per seed of `settings.seeds` (the first only for configs in `settings.first_seed_only`)."""
+    its named configs, plain and in each of its `VARIANTS`; adapters that train
+    once per seed of `settings.seeds` (the first only for configs in `settings.first_seed_only`);
+    and, when no adapters are named, the do-nothing adapter that times the interface (latency only)."""
     names = list(SOLVERS) if solvers is None else list(solvers)
     unknown = [n for n in names if n not in SOLVERS]
     if unknown:
@@ -127,12 +129,14 @@ def default_specs(
         for config in cls.CONFIGS:
             if configs is not None and config not in configs:
                 continue
-            if _trains(cls):
+            variants = [(), *(tuple(sorted(v.items())) for v in cls.VARIANTS)]
+            if cls.trains:
                 seeds = settings.seeds[:1] if config in settings.first_seed_only else settings.seeds
-                options = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
-                specs.extend(SolverSpec(name, config, options, seed) for seed in seeds)
+                budget = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
+                for variant in variants:  # the plain spec first: it trains, its variants reuse the model
+                    specs.extend(SolverSpec(name, config, tuple(sorted(budget + variant)), seed) for seed in seeds)
                 continue
-            specs.append(SolverSpec(name, config))
-            if "batch" in cls.OPTIONS:
-                specs.append(SolverSpec(name, config, (("batch", "stacked"),)))
+            specs.extend(SolverSpec(name, config, variant) for variant in variants)
+    if solvers is None:
+        specs.append(SolverSpec(INTERFACE))
     return specs

@@ -15,7 +15,7 @@ SPEC is a JSON file::
                                            # default [0]; adapters without one take no "seeds"
       "grid": {"width": [10, 20],          # option -> the values to sweep (non-empty lists);
                "n_f": [2000, 8000]},       # the runs are their cartesian product
-      "options": {"max_seconds": 30},      # fixed option overrides for every run (default {})
+      "options": {"max_iterations": 500},  # fixed option overrides for every run (default {})
       "description": "free text"           # optional, copied into the metadata
     }
 
@@ -591,7 +591,7 @@ EPILOG = """\
 SPEC (JSON):
   {"solver": "torch-pinn", "config": "default", "cases": ["smib-inference"],
    "seeds": [0, 1, 2], "grid": {"width": [10, 20], "n_f": [2000, 8000]},
-   "options": {"max_seconds": 30}}
+   "options": {"max_iterations": 500}}
 
   solver    a registered adapter (required)
   config    one of its named configs (default "default")

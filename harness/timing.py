@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["THREAD_ENV", "Timing", "pin_threads", "time_call"]
+__all__ = ["THREAD_ENV", "Timing", "blas_threads", "pin_threads", "time_call"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
 
@@ -29,6 +30,19 @@ def pin_threads(n: int) -> None:
         pass
     else:
         threadpool_limits(n)
+
+
+@contextlib.contextmanager
+def blas_threads(n: int | None) -> Iterator[None]:
+    """BLAS on `n` threads inside the block (None: as pinned). For adapters whose queries are
+    fastest with another BLAS thread count than the run's (`AbstractSolver.blas_threads`)."""
+    if n is None:
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=n, user_api="blas"):
+        yield
 
 
 class Timing(NamedTuple):

@@ -25,6 +25,11 @@ class ScipyOdeint(AbstractSolver):
         **TOLERANCE_CONFIGS["default"], "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
     }
     CONFIGS = TOLERANCE_CONFIGS
+    # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
+    # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,
+    # the 100 x 201 grid, rtol 1e-3: 97-216 ms on 2 BLAS threads, 20-32 ms on 1; at 1e-10, 12.7 ms
+    # either way): the harness times this adapter with 1.
+    blas_threads = 1
 
     def _fit(self) -> None:
         self.system = smib_system(self.case)

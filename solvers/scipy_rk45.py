@@ -37,6 +37,7 @@ class ScipyRK45(AbstractSolver):
         "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
     }
     CONFIGS = TOLERANCE_CONFIGS
+    VARIANTS = ({"batch": "stacked"},)
 
     def _check_options(self) -> None:
         super()._check_options()

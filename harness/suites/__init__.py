@@ -25,11 +25,16 @@ class Suite:
     needs_fit: bool = True
     every_seed: bool = False  # False: measured on the first seed of a trained adapter only
     case: Case | None = None  # None: the run's forward cases
+    interface: bool = False  # also measured on the do-nothing adapter (the interface's own cost)
+
+    def applies(self, cls: type) -> bool:
+        """Whether this suite measures adapters of class `cls`."""
+        return cls.does_work or self.interface
 
 
 SUITES: dict[str, Suite] = {suite.name: suite for suite in (
     Suite("accuracy", accuracy, every_seed=True),
-    Suite("latency", latency),
+    Suite("latency", latency, interface=True),
     Suite("work_precision", work_precision),
     Suite("identification", identification, needs_fit=False, case=SMIB_IDENTIFICATION),
 )}

@@ -10,6 +10,8 @@ from harness.reference import reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
 
+OFF_TRAINING = "reference, off the training points"
+
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
             P1: np.ndarray | None = None) -> dict:
@@ -30,16 +32,30 @@ def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.nd
     return row
 
 
+def off_training_grid(case: Case) -> tuple[np.ndarray, np.ndarray]:
+    """A grid away from a PINN's training data, which lie on t = 0 and the P1 edges of the standard
+    grid: the 200 midpoints between its times (0.05 ... 19.95 s) x the 99 midpoints between its P1
+    values (neither edge). Returns (t, P1)."""
+    t, P1 = standard_grid(case)
+    return 0.5 * (t[1:] + t[:-1]), 0.5 * (P1[1:] + P1[:-1])
+
+
 def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """Relative L2 (whole grid, the paper's measure), max abs error, best and worst trajectory of
-    delta (rad) and omega (rad/s) against DOP853 at 1e-12; delta also against the paper's ode45
-    data when the case has them."""
+    delta (rad) and omega (rad/s) against DOP853 at 1e-12 on the standard grid (`against`
+    "reference"); the same on `off_training_grid` ("reference, off the training points"); delta
+    also against the paper's ode45 data when the case has them."""
     t, P1 = standard_grid(case)
     traj = solver.solve(t, P1)
     ref_delta, ref_omega = reference(case, t, P1)
+    t_off, p_off = off_training_grid(case)
+    off = solver.solve(t_off, p_off)
+    off_delta, off_omega = reference(case, t_off, p_off)
     rows = [
         _errors("delta", "reference", "rad", traj.delta, ref_delta, P1),
         _errors("omega", "reference", "rad/s", traj.omega, ref_omega, P1),
+        _errors("delta", OFF_TRAINING, "rad", off.delta, off_delta),
+        _errors("omega", OFF_TRAINING, "rad/s", off.omega, off_omega),
     ]
     seed = seed_reference(case)
     if seed is not None:

@@ -22,7 +22,7 @@ def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     traj = solver.solve(t, P1)
     row = {"rel_l2_delta": metrics.rel_l2(traj.delta, ref_delta),
            "rel_l2_omega": metrics.rel_l2(traj.omega, ref_omega)}
-    for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=(T1_S,))):
+    for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=(T1_S,), points_batch=0)):
         prefix = "point_" if kind == "single point" else ""
         timing = time_call(lambda tq=tq, pq=pq: solver.solve(tq, pq), min_repeats=settings.min_repeats,
                            budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
@@ -31,17 +31,24 @@ def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     return row
 
 
+def setting_label(overrides: dict) -> str:
+    """"rtol=1e-06, atol=1e-09" or "dt=0.05": a point of a sweep, as text."""
+    return ", ".join(f"{key}={value:g}" for key, value in overrides.items())
+
+
 def work_precision(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
-    """An ODE solver (an adapter with an `rtol` option) gives a curve: one point per rtol of
-    `settings.wp_rtols` (atol = rtol * 1e-3), swept from its "default" config only (the sweep
-    covers the other tolerance configs); any other adapter gives its own point."""
-    if "rtol" in solver.OPTIONS and solver.config != "default":
+    """An adapter with a precision sweep (`AbstractSolver.precision_sweep`: tolerances of an adaptive
+    solver, steps of a fixed-step one) gives a curve, one point per setting, swept from each config
+    that the sweep does not cover (a config that only sets the swept options, like "tight", is a
+    point of the "default" curve); any other adapter gives its own point. Each row has the overrides as columns (rtol, atol or dt) and as `setting` text."""
+    sweep = solver.precision_sweep(settings.wp_rtols)
+    if not sweep:
+        return [{"setting": "", **_point(solver, case, settings)}]
+    if solver.config != "default" and set(solver.CONFIGS[solver.config]) <= set(sweep[0]):
         return []
-    if "rtol" not in solver.OPTIONS:
-        return [{"rtol": float("nan"), "atol": float("nan"), **_point(solver, case, settings)}]
     rows = []
-    for rtol in settings.wp_rtols:
-        tuned = type(solver)(case, solver.config, **{**solver.options, "rtol": rtol, "atol": rtol * 1e-3})
+    for overrides in sweep:
+        tuned = type(solver)(case, solver.config, **{**solver.options, **overrides})
         tuned.fit()
-        rows.append({"rtol": rtol, "atol": rtol * 1e-3, **_point(tuned, case, settings)})
+        rows.append({**overrides, "setting": setting_label(overrides), **_point(tuned, case, settings)})
     return rows

@@ -1,0 +1,128 @@
+"""Who wins which query: the ladder table, the single-point crossover in t1, and the verdict
+sentences of a run. Pure pandas on the rows of one run (see `harness.analysis.ladder`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from harness.analysis import (
+    COMPILED,
+    GRID_QUERY,
+    POINT_QUERY,
+    RUNGS,
+    crossover_t1,
+    fastest_classical,
+    first_seed,
+    fmt,
+    label,
+    ladder,
+    ok,
+    trained,
+)
+
+__all__ = ["crossover", "ladder_queries", "ladder_table", "verdict_lines"]
+
+RUNG_TITLES = dict(zip(RUNGS, ("literature baseline: scipy RK45 looped, as ode45 in the paper",
+                               "best Python-driven classical", "best compiled classical")))
+
+
+def ladder_queries(frames: dict) -> list[str]:
+    """The queries of the ladder, in order: the grid, one trajectory, the single point at
+    t1 = 10 s, and the batch of scattered single points, those the run timed."""
+    lat = ok(frames.get("latency"))
+    if lat.empty:
+        return []
+    timed = list(dict.fromkeys(lat["query"]))
+    one = [q for q in timed if q.startswith("1 trajectories")]
+    batch = [q for q in timed if str(q).endswith("single points, one call")]
+    return [q for q in (GRID_QUERY, *one, POINT_QUERY, *batch) if q in timed]
+
+
+def _cell(row: pd.Series, rung: str) -> str:
+    speedup = row[f"{rung}: speedup"]
+    if math.isnan(speedup):
+        return "none as accurate"
+    verdict = f"PINN {fmt(speedup, 2)}x faster" if speedup >= 1 else f"classical {fmt(1 / speedup, 2)}x faster"
+    return f"{row[f'{rung}: option']}: {fmt(1e3 * row[f'{rung}: s'])} ms ({verdict})"
+
+
+def ladder_table(frames: dict) -> pd.DataFrame:
+    """Per query and PINN spec (first seed): its error and time, and each rung's fastest classical
+    option at least as accurate, with who is faster by how much."""
+    rows = []
+    for query in ladder_queries(frames):
+        for _, r in ladder(frames, query).iterrows():
+            rows.append({"query": query, "PINN (first seed)": r["pinn"], "delta rel. L2": fmt(r["pinn_rel_l2"]),
+                         "PINN (ms)": fmt(1e3 * r["pinn_s"]),
+                         **{RUNG_TITLES[rung]: _cell(r, rung) for rung in RUNGS}})
+    return pd.DataFrame(rows)
+
+
+def _fastest_pinn(steps: pd.DataFrame) -> pd.Series | None:
+    return None if steps.empty else steps.loc[steps["pinn_s"].idxmin()]
+
+
+def crossover(frames: dict) -> dict | None:
+    """The single-point query against t1 for the fastest PINN path at t1 = 10 s and the fastest
+    compiled classical option at least as accurate (named configurations: the ones timed at every
+    t1): their labels, the t1 values (s), both medians (s), and `crossover_t1`'s verdict."""
+    steps = ladder(frames, POINT_QUERY)
+    pinn = _fastest_pinn(steps)
+    if pinn is None:
+        return None
+    lat = ok(frames.get("latency"))
+    lat = lat[lat["kind"] == "single point"]
+    lat = lat.assign(label=label(lat))
+    best = fastest_classical({**frames, "work_precision": None}, POINT_QUERY, pinn["pinn_rel_l2"], COMPILED)
+    if best is None:
+        return None
+    p = first_seed(lat[lat["label"] == pinn["pinn"]]).set_index("t1_s")["median_s"]
+    c = lat[lat["label"] == best[0]].set_index("t1_s")["median_s"]
+    t1 = np.array(sorted(set(p.index) & set(c.index)))
+    if t1.size == 0:
+        return None
+    how, where = crossover_t1(t1, c[t1].to_numpy(), p[t1].to_numpy())
+    return {"pinn": pinn["pinn"], "classical": best[0], "t1_s": t1, "pinn_s": p[t1].to_numpy(),
+            "classical_s": c[t1].to_numpy(), "how": how, "t1_cross_s": where}
+
+
+def _crossover_sentence(frames: dict) -> str | None:
+    x = crossover(frames)
+    if x is None:
+        return None
+    pair = f"{x['classical']} against {x['pinn']}"
+    if x["how"] == "crossover":
+        return (f"Single point against t1 ({pair}): the classical solver, which integrates from 0, is "
+                f"cheaper below t1 = {fmt(x['t1_cross_s'])} s and the PINN above it.")
+    span = f"t1 in [{fmt(x['t1_s'].min())}, {fmt(x['t1_s'].max())}] s"
+    return f"Single point against t1 ({pair}): {x['how']} on the measured {span}, no crossover."
+
+
+def verdict_lines(frames: dict) -> list[str]:
+    """One sentence per ladder query: the fastest PINN path (first seed) against the fastest
+    classical option of any rung at least as accurate; then the crossover in t1."""
+    lines = []
+    for query in ladder_queries(frames):
+        pinn = _fastest_pinn(ladder(frames, query))
+        if pinn is None:
+            continue
+        best = fastest_classical(frames, query, pinn["pinn_rel_l2"])
+        head = f"{query}: fastest PINN {pinn['pinn']} {fmt(1e3 * pinn['pinn_s'])} ms at rel. L2 {fmt(pinn['pinn_rel_l2'])}"
+        if best is None:
+            lines.append(f"{head}; no classical option as accurate was measured.")
+        elif best[1] < pinn["pinn_s"]:
+            lines.append(f"{head}; classical wins: {best[0]} {fmt(1e3 * best[1])} ms, "
+                         f"{fmt(pinn['pinn_s'] / best[1], 2)}x faster.")
+        else:
+            lines.append(f"{head}; the PINN wins, {fmt(best[1] / pinn['pinn_s'], 2)}x faster than "
+                         f"{best[0]} ({fmt(1e3 * best[1])} ms).")
+    sentence = _crossover_sentence(frames)
+    if sentence:
+        lines.append(sentence)
+    trained_fit = ok(frames.get("fit"))
+    if not trained_fit.empty and trained(trained_fit).any():
+        lines.append("Training cost is apart from these query times: see the break-even table.")
+    return lines
