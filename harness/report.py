@@ -35,7 +35,7 @@ from harness.model_cache import library_versions
 from harness.paper import paper_table
 from harness.store import atomic_write
 from harness.suites.accuracy import OFF_TRAINING
-from harness.verdict import ladder_table, verdict_lines
+from harness.verdict import ladder_rows, ladder_table, verdict_lines
 
 __all__ = ["build_tables", "metadata", "write_report"]
 
@@ -221,9 +221,9 @@ def _status_table(frames: dict) -> pd.DataFrame:
 TABLES = {
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
                "error, fit time and query time of one model)"), paper_table),
-    "ladder": (("Who wins each query at matched accuracy: each PINN (first seed; `query=numba` is its "
-                "compiled query path) against the fastest classical option at least as accurate on each "
-                "rung"), ladder_table),
+    "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
+                "seed; `query=numba` is the compiled query path) against the fastest classical option at least "
+                "as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
     "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
                   "(median [min, max] over seeds for PINNs)"), _accuracy_table),
     "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
@@ -289,6 +289,9 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     for suite, df in frames.items():
         csv = df.drop(columns=[c for c in TRAJECTORY_COLUMNS if c in df])
         atomic_write(out_dir / f"{suite}.csv", csv.to_csv(index=False))
+    steps = ladder_rows(frames, fastest_per_config=False)
+    if not steps.empty:
+        atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
     tables = build_tables(frames)
     markdown = _header(meta) + _verdict(frames) + "\n".join(
         f"### {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables.values())
@@ -314,6 +317,7 @@ def _results_readme(meta: dict, frames: dict, tables: dict, figures: list[str]) 
               "- `rows.jsonl`: every row as measured (the source of everything else)",
               *(f"- `{suite}.csv`: tidy rows of the {suite} suite" for suite in frames),
               "- `tables.md`, `tables.tex`: the tables below, Markdown and LaTeX",
+              "- `ladder.csv`: the verdict ladder of every PINN spec and query",
               *(f"- `{name}.png`, `{name}.pdf`" for name in figures),
               "", "## Tables", "", *(f"### {title}\n\n{table.to_markdown(index=False)}\n"
                                       for title, table in tables.values())]

@@ -9,10 +9,10 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis import (
-    COMPILED,
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,
+    compiled,
     crossover_t1,
     fastest_classical,
     first_seed,
@@ -23,7 +23,7 @@ from harness.analysis import (
     trained,
 )
 
-__all__ = ["crossover", "ladder_queries", "ladder_table", "verdict_lines"]
+__all__ = ["crossover", "ladder_queries", "ladder_rows", "ladder_table", "verdict_lines"]
 
 RUNG_TITLES = dict(zip(RUNGS, ("literature baseline: scipy RK45 looped, as ode45 in the paper",
                                "best Python-driven classical", "best compiled classical")))
@@ -49,44 +49,77 @@ def _cell(row: pd.Series, rung: str) -> str:
     return f"{row[f'{rung}: option']}: {fmt(1e3 * row[f'{rung}: s'])} ms ({verdict})"
 
 
+def ladder_rows(frames: dict, fastest_per_config: bool = True) -> pd.DataFrame:
+    """`analysis.ladder` of every ladder query, one frame; with `fastest_per_config`, of each PINN
+    configuration only its fastest spec (backend and query path) per query."""
+    steps = [ladder(frames, query) for query in ladder_queries(frames)]
+    steps = pd.concat([s for s in steps if not s.empty], ignore_index=True) if any(not s.empty for s in steps) \
+        else pd.DataFrame()
+    if steps.empty or not fastest_per_config:
+        return steps
+    config = steps["pinn"].str.extract(r"\[([^,\]]+)")[0]
+    return steps.loc[steps.assign(config=config).groupby(["query", "config"], sort=False)["pinn_s"].idxmin()]
+
+
 def ladder_table(frames: dict) -> pd.DataFrame:
-    """Per query and PINN spec (first seed): its error and time, and each rung's fastest classical
-    option at least as accurate, with who is faster by how much."""
-    rows = []
-    for query in ladder_queries(frames):
-        for _, r in ladder(frames, query).iterrows():
-            rows.append({"query": query, "PINN (first seed)": r["pinn"], "delta rel. L2": fmt(r["pinn_rel_l2"]),
-                         "PINN (ms)": fmt(1e3 * r["pinn_s"]),
-                         **{RUNG_TITLES[rung]: _cell(r, rung) for rung in RUNGS}})
-    return pd.DataFrame(rows)
+    """Per query and PINN configuration, its fastest spec (first seed): its error and time, and
+    each rung's fastest classical option at least as accurate, with who is faster by how much
+    (every spec: `ladder_rows(frames, fastest_per_config=False)`, written to ladder.csv)."""
+    return pd.DataFrame([{"query": r["query"], "PINN (first seed, fastest path)": r["pinn"],
+                          "delta rel. L2": fmt(r["pinn_rel_l2"]), "PINN (ms)": fmt(1e3 * r["pinn_s"]),
+                          **{RUNG_TITLES[rung]: _cell(r, rung) for rung in RUNGS}}
+                         for _, r in ladder_rows(frames).iterrows()])
 
 
 def _fastest_pinn(steps: pd.DataFrame) -> pd.Series | None:
     return None if steps.empty else steps.loc[steps["pinn_s"].idxmin()]
 
 
+def _compiled_curves(frames: dict, max_rel_l2: float) -> list[tuple[str, dict[float, float]]]:
+    """(label, {t1 s: median s}) of each compiled classical option at least as accurate as
+    `max_rel_l2`: its named configs (latency suite) and each point of its sweep (work precision)."""
+    curves = []
+    lat, acc = ok(frames.get("latency")), ok(frames.get("accuracy"))
+    if not lat.empty and not acc.empty:
+        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & compiled(acc) & ~trained(acc)]
+        good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
+        lat = lat[(lat["kind"] == "single point") & compiled(lat) & ~trained(lat)]
+        for name, g in lat.groupby(label(lat), sort=False):
+            if name in good:
+                curves.append((name, dict(zip(g["t1_s"], g["median_s"]))))
+    wp = ok(frames.get("work_precision"))
+    if not wp.empty:
+        wp = wp[compiled(wp) & ~trained(wp) & (wp["rel_l2_delta"] <= max_rel_l2)]
+        columns = {c: float(c.split("=")[1].split("_")[0]) for c in wp if c.startswith("point_t1=")}
+        for (_, row), name in zip(wp.iterrows(), label(wp)):
+            curve = {t1: row[c] for c, t1 in columns.items() if pd.notna(row[c])}
+            if curve and isinstance(row.get("setting"), str) and row["setting"]:
+                curves.append((f"{name[:-1]}, {row['setting']}]", curve))
+    return curves
+
+
 def crossover(frames: dict) -> dict | None:
-    """The single-point query against t1 for the fastest PINN path at t1 = 10 s and the fastest
-    compiled classical option at least as accurate (named configurations: the ones timed at every
-    t1): their labels, the t1 values (s), both medians (s), and `crossover_t1`'s verdict."""
-    steps = ladder(frames, POINT_QUERY)
-    pinn = _fastest_pinn(steps)
+    """The single-point query against t1 for the fastest PINN path at t1 = 10 s (first seed) and
+    the compiled classical option at least as accurate that is fastest at t1 = 10 s (a named
+    config or any point of a sweep): their labels, the t1 values (s), both medians (s), and
+    `crossover_t1`'s verdict."""
+    pinn = _fastest_pinn(ladder(frames, POINT_QUERY))
     if pinn is None:
         return None
-    lat = ok(frames.get("latency"))
-    lat = lat[lat["kind"] == "single point"]
-    lat = lat.assign(label=label(lat))
-    best = fastest_classical({**frames, "work_precision": None}, POINT_QUERY, pinn["pinn_rel_l2"], COMPILED)
-    if best is None:
+    curves = [(name, curve) for name, curve in _compiled_curves(frames, pinn["pinn_rel_l2"]) if 10.0 in curve]
+    if not curves:
         return None
-    p = first_seed(lat[lat["label"] == pinn["pinn"]]).set_index("t1_s")["median_s"]
-    c = lat[lat["label"] == best[0]].set_index("t1_s")["median_s"]
-    t1 = np.array(sorted(set(p.index) & set(c.index)))
+    best, curve = min(curves, key=lambda c: c[1][10.0])
+    lat = ok(frames.get("latency"))
+    lat = first_seed(lat[lat["kind"] == "single point"])
+    p = lat[label(lat) == pinn["pinn"]].set_index("t1_s")["median_s"]
+    t1 = np.array(sorted(set(p.index) & set(curve)))
     if t1.size == 0:
         return None
-    how, where = crossover_t1(t1, c[t1].to_numpy(), p[t1].to_numpy())
-    return {"pinn": pinn["pinn"], "classical": best[0], "t1_s": t1, "pinn_s": p[t1].to_numpy(),
-            "classical_s": c[t1].to_numpy(), "how": how, "t1_cross_s": where}
+    classical_s = np.array([curve[t] for t in t1])
+    how, where = crossover_t1(t1, classical_s, p[t1].to_numpy())
+    return {"pinn": pinn["pinn"], "classical": best, "t1_s": t1, "pinn_s": p[t1].to_numpy(),
+            "classical_s": classical_s, "how": how, "t1_cross_s": where}
 
 
 def _crossover_sentence(frames: dict) -> str | None:

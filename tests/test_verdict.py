@@ -105,3 +105,14 @@ def test_a_timing_measured_once_is_marked_and_a_points_batch_shows_its_cost_per_
     markdown = write_report(rows, tmp_path, {"threads": 2}, plots=False)
     assert "1e+03 (1 run)" in markdown and "±0%" not in markdown
     assert "20 ±5% (2 us/point)" in markdown
+
+
+def test_crossover_takes_the_fastest_compiled_option_at_matched_accuracy_from_the_sweep_too():
+    """A point of numba's tolerance sweep (error 1e-6 <= the PINN's 1e-5) is cheaper than its tight
+    config (0.8 against 2 us per s of t1): the crossover uses it, at t1 = 12.5 s (the PINN: 10 us)."""
+    sweep = {"suite": "work_precision", **NUMBA, "config": "default", "setting": "rtol=1e-05, atol=1e-08",
+             "rtol": 1e-5, "atol": 1e-8, "rel_l2_delta": 1e-6, "median_s": 1e-3, "point_median_s": 5e-6,
+             **{f"point_t1={t:g}_median_s": 0.8e-6 * t for t in T1}}
+    x = crossover(suite_frames([*_rows(), sweep]))
+    assert x["classical"] == "numba-rk [default, rtol=1e-05, atol=1e-08]"
+    assert x["how"] == "crossover" and x["t1_cross_s"] == pytest.approx(12.5)

@@ -14,9 +14,16 @@ from harness.timing import time_call
 from solvers.base import AbstractSolver
 
 
+def t1_column(t1: float) -> str:
+    """The column of the median single-point time (s) at `t1` (s) of a compiled adapter's sweep."""
+    return f"point_t1={t1:g}_median_s"
+
+
 def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     """Errors on the grid; median, quartiles and repeats (s) of the grid query and, as `point_*`,
-    of the single-time-point query at t1 = 10 s: the latency suite's own two queries."""
+    of the single-time-point query at t1 = 10 s: the latency suite's own two queries. For a
+    compiled adapter also the single point at every t1 of the run (`t1_column`, a fifth of the
+    timing budget each), so that the crossover in t1 can take any point of its sweep."""
     t, P1 = standard_grid(case)
     ref_delta, ref_omega = reference(case, t, P1)
     traj = solver.solve(t, P1)
@@ -28,6 +35,12 @@ def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
                            budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
         row.update({f"{prefix}median_s": timing.median_s, f"{prefix}q25_s": timing.q25_s,
                     f"{prefix}q75_s": timing.q75_s, f"{prefix}repeats": timing.repeats})
+    if solver.compiled:
+        for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), points_batch=0)):
+            if kind == "single point":
+                timing = time_call(lambda tq=tq, pq=pq: solver.solve(tq, pq), min_repeats=settings.min_repeats,
+                                   budget_s=settings.latency_budget_s / 5, slow_s=settings.max_call_s)
+                row[t1_column(float(tq[0]))] = timing.median_s
     return row
 
 
