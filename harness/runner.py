@@ -7,7 +7,7 @@ import traceback
 from collections.abc import Iterable, Iterator
 
 from harness.cases import Case
-from harness.model_cache import Persistable, load_cached, store_cached
+from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite
@@ -27,6 +27,11 @@ def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
     return spec.seed is None or spec.seed == min(seeds)
 
 
+def _query_variant(spec: SolverSpec) -> bool:
+    """Whether `spec` sets an option that only changes how a trained model is queried."""
+    return any(key in QUERY_ONLY_OPTIONS for key, _ in spec.options)
+
+
 def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> Iterator[tuple[Case, SolverSpec, list[Suite]]]:
     """(case, spec, suites) units in run order: the forward cases first, then suites with a case of
     their own; suites that are not measured for every seed run on the first seed only."""
@@ -40,7 +45,7 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> Ite
         for spec in specs:
             cls = solver_class(spec.solver)
             chosen = [s for s in group if (s.every_seed or _first_seed(spec, specs))
-                      and (cls is None or s.applies(cls))]
+                      and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec))]
             if chosen:
                 yield case, spec, chosen
 

@@ -354,3 +354,17 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
     assert PinnConfig(id_max_seconds=2.0).deadline(5.0, identification=True) == 7.0
     with pytest.raises(ValueError, match="max_seconds"):
         PinnConfig(max_seconds=0.0)
+
+
+def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
+    from harness.cases import SMIB_INFERENCE as forward
+    from harness.runner import plan
+    from harness.runs import default_specs
+    from harness.suites import SUITES
+
+    specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
+    units = {(case.name, spec.variant): [s.name for s in group]
+             for case, spec, group in plan(specs, [forward], list(SUITES.values()))}
+    assert units[("smib-identification", "")] == ["identification"]
+    assert ("smib-identification", "query=numba") not in units
+    assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]

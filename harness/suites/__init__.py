@@ -26,6 +26,8 @@ class Suite:
     every_seed: bool = False  # False: measured on the first seed of a trained adapter only
     case: Case | None = None  # None: the run's forward cases
     interface: bool = False  # also measured on the do-nothing adapter (the interface's own cost)
+    queries: bool = True  # measures queries; False: a spec that differs only in how a trained model is
+    #                       queried (`query=numba`) would repeat the same work, so it is not run for it
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""
@@ -36,7 +38,7 @@ SUITES: dict[str, Suite] = {suite.name: suite for suite in (
     Suite("accuracy", accuracy, every_seed=True),
     Suite("latency", latency, interface=True),
     Suite("work_precision", work_precision),
-    Suite("identification", identification, needs_fit=False, case=SMIB_IDENTIFICATION),
+    Suite("identification", identification, needs_fit=False, case=SMIB_IDENTIFICATION, queries=False),
 )}
 
 __all__ = ["SUITES", "Suite", "accuracy", "identification", "latency", "observations", "work_precision"]
