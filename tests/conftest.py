@@ -22,6 +22,13 @@ def small_options(name: str) -> dict:
     return {k: v for k, v in SMALL_BUDGET.items() if k in cls.OPTIONS}
 
 
+def fit_for_tests(solver) -> None:
+    """`fit()`, with diffrax compiling one small shape instead of the benchmark's (its JIT is slow)."""
+    if hasattr(solver, "FIT_SHAPES"):
+        solver.FIT_SHAPES = ((7, 3),)
+    solver.fit()
+
+
 def require(name: str) -> None:
     if SOLVERS[name] is None:
         pytest.skip(UNAVAILABLE[name])
@@ -36,9 +43,7 @@ def fitted_solvers() -> dict:
         def __missing__(self, name):
             require(name)
             solver = make_solver(name, SMIB_INFERENCE, **small_options(name))
-            if hasattr(solver, "FIT_SHAPES"):  # diffrax: compile the shapes the contract uses, not the bench's
-                solver.FIT_SHAPES = ((7, 3),)
-            solver.fit()
+            fit_for_tests(solver)
             self[name] = solver
             return solver
 
