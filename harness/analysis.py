@@ -7,6 +7,7 @@ comparison is between rows of the same run.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -18,9 +19,11 @@ __all__ = [
     "POINT_QUERY",
     "PYTHON_DRIVEN",
     "RUNGS",
+    "T1_COLUMN",
     "break_even",
     "compiled",
     "crossover_t1",
+    "does_work",
     "fastest_classical",
     "first_seed",
     "fmt",
@@ -32,6 +35,7 @@ __all__ = [
     "ok",
     "pareto_front",
     "seed_summary",
+    "t1_column",
     "time_at_accuracy",
     "trained",
 ]
@@ -147,6 +151,15 @@ RUNGS = (LITERATURE, PYTHON_DRIVEN, COMPILED)
 LITERATURE_SOLVER = "scipy-rk45"  # looped, as MATLAB ode45 was in the paper's 28x and 87x
 
 
+T1_COLUMN = re.compile(r"point_t1=(?P<t1>[0-9.e+-]+)_median_s")
+
+
+def t1_column(t1: float) -> str:
+    """The work-precision column of the median single-point time (s) at `t1` (s), which compiled
+    adapters record at every t1 (`T1_COLUMN` reads it back)."""
+    return f"point_t1={t1:g}_median_s"
+
+
 def compiled(df: pd.DataFrame) -> pd.Series:
     """Rows of adapters whose queries run in compiled code (rows before the column: none)."""
     if "compiled" not in df:
@@ -154,9 +167,18 @@ def compiled(df: pd.DataFrame) -> pd.Series:
     return df["compiled"].fillna(False).astype(bool)
 
 
+def does_work(df: pd.DataFrame) -> pd.Series:
+    """Rows of real adapters, not of the do-nothing one that times the interface (`solvers.INTERFACE`;
+    rows of runs before the `does_work` column are told by that name)."""
+    by_name = df["solver"] != "interface-overhead"
+    if "does_work" not in df:
+        return by_name
+    return df["does_work"].fillna(by_name).astype(bool)
+
+
 def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
     """Classical rows that rung `rung` may pick (None: every classical row)."""
-    classical = ~trained(df) & (df["solver"] != "interface-overhead")
+    classical = ~trained(df) & does_work(df)
     if rung is None:
         return classical
     if rung == LITERATURE:

@@ -4,14 +4,14 @@ the training cost measured when they were trained (so a cached run still reports
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import json
 from pathlib import Path
 
 from harness.store import atomic_write
+from harness.versions import library_versions
 from solvers.base import AbstractSolver, FitReport
 
-__all__ = ["QUERY_ONLY_OPTIONS", "Persistable", "cache_key", "code_version", "library_versions", "load_cached",
+__all__ = ["QUERY_ONLY_OPTIONS", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version", "load_cached",
            "store_cached"]
 
 _ROOT = Path(__file__).resolve().parents[1]
@@ -39,17 +39,6 @@ def Persistable(solver: AbstractSolver) -> bool:
     return callable(getattr(solver, "save", None)) and callable(getattr(solver, "load", None))
 
 
-def library_versions(libraries: tuple[str, ...] = TRAINING_LIBRARIES) -> dict[str, str]:
-    """Installed versions of `libraries` ("not installed" for a missing one)."""
-    versions = {}
-    for lib in libraries:
-        try:
-            versions[lib] = importlib.metadata.version(lib)
-        except importlib.metadata.PackageNotFoundError:
-            versions[lib] = "not installed"
-    return versions
-
-
 def cache_key(solver: AbstractSolver) -> str:
     """The file stem of `solver`'s trained model: adapter, config, every option that changes
     training (not `QUERY_ONLY_OPTIONS`: threads change the speed of training, and its result only
@@ -57,7 +46,7 @@ def cache_key(solver: AbstractSolver) -> str:
     options = {k: v for k, v in solver.options.items() if k not in QUERY_ONLY_OPTIONS}
     payload = json.dumps({"solver": solver.name, "config": solver.config, "options": options,
                           "case": solver.case.__dict__, "code": code_version(),
-                          "libraries": library_versions()},
+                          "libraries": library_versions(TRAINING_LIBRARIES)},
                          sort_keys=True, default=str)
     return f"{solver.name}-{solver.config}-{hashlib.sha256(payload.encode()).hexdigest()[:16]}"
 

@@ -10,6 +10,7 @@ from harness.analysis import (
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,
+    does_work,
     first_seed,
     fmt,
     identification_data,
@@ -171,7 +172,7 @@ def _speed_row(frames: dict, query: str, claim: str, pinn_s: float, ode45_s: flo
         return []
     ode45 = lat[lat["label"] == ODE45_LIKE]["median_s"]
     ode45_s_ours = float(ode45.iloc[0]) if not ode45.empty else float("nan")
-    classical = lat[~trained(lat) & (lat["solver"] != "interface-overhead")]
+    classical = lat[~trained(lat) & does_work(lat)]
     steps = ladder(frames, query)
     if not steps.empty:  # per configuration of this table's columns, its fastest spec (the ladder table has all)
         config = steps["pinn"].str.extract(r"\[([^,\]]+)")[0]

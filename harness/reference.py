@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 from harness.cases import CASES, Case, check_array
 from harness.model import accelerations, smib_system
 
-__all__ = ["PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference",
+__all__ = ["OFF_TRAINING", "PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference",
            "seed_reference"]
 
 REFERENCE_TOL = 1e-12
@@ -19,6 +19,9 @@ REFERENCE_TOL = 1e-12
 # published MATLAB ode45 trajectories (`seed_reference`, ~1.2e-3 rad of their own error).
 REFERENCE_DATA = "reference"
 PAPER_DATA = "paper ode45"
+# The accuracy suite's name (column `against`) of the reference on the grid away from a PINN's
+# training points (`harness.suites.accuracy.off_training_grid`).
+OFF_TRAINING = "reference, off the training points"
 
 
 def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:

@@ -31,11 +31,11 @@ from harness.analysis import (
     ok,
     trained,
 )
-from harness.model_cache import library_versions
 from harness.paper import paper_table
+from harness.reference import OFF_TRAINING
 from harness.store import atomic_write
-from harness.suites.accuracy import OFF_TRAINING
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
+from harness.versions import library_versions
 
 __all__ = ["build_tables", "metadata", "write_report"]
 

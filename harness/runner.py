@@ -96,7 +96,7 @@ def run_suites(
         cls = solver_class(spec.solver)
         base = {"case": case.name, **spec.key(), "threads": settings.threads}
         if cls is not None:
-            base.update(trains=cls.trains, compiled=cls.compiled,
+            base.update(trains=cls.trains, compiled=cls.compiled, does_work=cls.does_work,
                         blas_threads=cls.blas_threads or settings.threads)
         todo = [s for s in group if _unit_key({"suite": s.name, **base}) not in done]
         if bar:

@@ -94,7 +94,7 @@ QUICK = Settings(
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000,
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
-# make bench: every suite within ~30 minutes on 2 cores. Three seeds of each configuration of the
+# make bench: every suite within ~40 minutes on 2 cores. Three seeds of each configuration of the
 # paper and of `default`, one of the extra `two-outputs`; identification on the paper's own case
 # (m = 0.25, d = 0.15, also from the paper's ode45 data) and one of the 10 pairs, PINN identification
 # budgets of each configuration (iterations), not for the two-output networks (the paper identifies with one

@@ -12,6 +12,7 @@ from harness.analysis import (
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,
+    T1_COLUMN,
     compiled,
     crossover_t1,
     fastest_classical,
@@ -90,7 +91,7 @@ def _compiled_curves(frames: dict, max_rel_l2: float) -> list[tuple[str, dict[fl
     wp = ok(frames.get("work_precision"))
     if not wp.empty:
         wp = wp[compiled(wp) & ~trained(wp) & (wp["rel_l2_delta"] <= max_rel_l2)]
-        columns = {c: float(c.split("=")[1].split("_")[0]) for c in wp if c.startswith("point_t1=")}
+        columns = {c: float(m["t1"]) for c in wp if (m := T1_COLUMN.fullmatch(str(c)))}
         for (_, row), name in zip(wp.iterrows(), label(wp)):
             curve = {t1: row[c] for c, t1 in columns.items() if pd.notna(row[c])}
             if curve and isinstance(row.get("setting"), str) and row["setting"]:

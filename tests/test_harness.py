@@ -332,7 +332,8 @@ def test_git_commit_is_dirty_only_for_changes_the_run_did_not_write(tmp_path):
 
 
 def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
-    from harness.model_cache import cache_key, library_versions
+    from harness.model_cache import TRAINING_LIBRARIES, cache_key
+    from harness.versions import library_versions
 
     pytest.importorskip("jax")
     base = solvers.make_solver("jax-pinn", SMIB_INFERENCE)
@@ -343,7 +344,7 @@ def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
              solvers.make_solver("jax-pinn", SMIB_INFERENCE, max_iterations=10),
              solvers.make_solver("jax-pinn", SMIB_INFERENCE.with_params(0.3, 0.1))]
     assert len({cache_key(s) for s in other} | {cache_key(base)}) == 4
-    assert set(library_versions()) >= {"numpy", "scipy", "jax"}
+    assert set(library_versions(TRAINING_LIBRARIES)) >= {"numpy", "scipy", "jax"}
 
 
 def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
@@ -368,3 +369,17 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
     assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]
+
+
+def test_work_precision_times_a_compiled_adapter_at_every_t1_once():
+    from harness.analysis import T1_COLUMN
+    from harness.suites.work_precision import work_precision
+
+    if solvers.SOLVERS.get("numba-rk") is None:
+        pytest.skip("numba not installed")
+    settings = replace(QUICK, wp_rtols=(1e-6,), latency_budget_s=0.01, min_repeats=2)
+    (row,) = work_precision(solvers.make_solver("numba-rk", SMIB_INFERENCE), SMIB_INFERENCE, settings)
+    times = {float(m["t1"]): row[c] for c in row if (m := T1_COLUMN.fullmatch(c))}
+    assert sorted(times) == list(settings.t1_values_s)
+    assert row["point_median_s"] > 0 and all(s > 0 for s in times.values())
+    assert row["setting"] == "rtol=1e-06, atol=1e-09" and row["rel_l2_delta"] < 1e-5

@@ -6,11 +6,9 @@ import numpy as np
 
 from harness import metrics
 from harness.cases import Case, standard_grid
-from harness.reference import reference, seed_reference
+from harness.reference import OFF_TRAINING, reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
-
-OFF_TRAINING = "reference, off the training points"
 
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,

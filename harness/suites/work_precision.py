@@ -6,17 +6,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 from harness import metrics
+from harness.analysis import t1_column
 from harness.cases import Case, standard_grid
 from harness.reference import reference
 from harness.runs import Settings
 from harness.suites.latency import T1_S, queries
 from harness.timing import time_call
 from solvers.base import AbstractSolver
-
-
-def t1_column(t1: float) -> str:
-    """The column of the median single-point time (s) at `t1` (s) of a compiled adapter's sweep."""
-    return f"point_t1={t1:g}_median_s"
 
 
 def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
@@ -29,18 +25,20 @@ def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     traj = solver.solve(t, P1)
     row = {"rel_l2_delta": metrics.rel_l2(traj.delta, ref_delta),
            "rel_l2_omega": metrics.rel_l2(traj.omega, ref_omega)}
-    for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=(T1_S,), points_batch=0)):
-        prefix = "point_" if kind == "single point" else ""
+    t1_values = settings.t1_values_s if solver.compiled else (T1_S,)
+    for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=t1_values,
+                                                 points_batch=0)):
+        t1 = float(tq[0]) if kind == "single point" else None
+        paper_query = t1 is None or t1 == T1_S  # the grid and t1 = 10 s: the full budget
         timing = time_call(lambda tq=tq, pq=pq: solver.solve(tq, pq), min_repeats=settings.min_repeats,
-                           budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
-        row.update({f"{prefix}median_s": timing.median_s, f"{prefix}q25_s": timing.q25_s,
-                    f"{prefix}q75_s": timing.q75_s, f"{prefix}repeats": timing.repeats})
-    if solver.compiled:
-        for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), points_batch=0)):
-            if kind == "single point":
-                timing = time_call(lambda tq=tq, pq=pq: solver.solve(tq, pq), min_repeats=settings.min_repeats,
-                                   budget_s=settings.latency_budget_s / 5, slow_s=settings.max_call_s)
-                row[t1_column(float(tq[0]))] = timing.median_s
+                           budget_s=settings.latency_budget_s / (1 if paper_query else 5),
+                           slow_s=settings.max_call_s)
+        if t1 is not None and solver.compiled:
+            row[t1_column(t1)] = timing.median_s
+        if paper_query:
+            prefix = "" if t1 is None else "point_"
+            row.update({f"{prefix}median_s": timing.median_s, f"{prefix}q25_s": timing.q25_s,
+                        f"{prefix}q75_s": timing.q75_s, f"{prefix}repeats": timing.repeats})
     return row
 
 
@@ -53,7 +51,8 @@ def work_precision(solver: AbstractSolver, case: Case, settings: Settings) -> li
     """An adapter with a precision sweep (`AbstractSolver.precision_sweep`: tolerances of an adaptive
     solver, steps of a fixed-step one) gives a curve, one point per setting, swept from each config
     that the sweep does not cover (a config that only sets the swept options, like "tight", is a
-    point of the "default" curve); any other adapter gives its own point. Each row has the overrides as columns (rtol, atol or dt) and as `setting` text."""
+    point of the "default" curve); any other adapter gives its own point. Each row has the
+    overrides as columns (rtol, atol or dt) and as `setting` text."""
     sweep = solver.precision_sweep(settings.wp_rtols)
     if not sweep:
         return [{"setting": "", **_point(solver, case, settings)}]
