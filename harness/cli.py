@@ -47,7 +47,9 @@ def _parser() -> argparse.ArgumentParser:
     size.add_argument("--full", action="store_true",
                       help="every seed (5), the paper's (m, d) and the 10 pairs, both noise levels; long")
     run.add_argument("--resume", action="store_true",
-                     help="keep OUT/rows.jsonl and run only what it does not hold yet")
+                     help="keep OUT/rows.jsonl and run only the units of work it does not record as complete "
+                          "(what an interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured "
+                          "again; failed units are results and are kept); resuming a finished run changes nothing")
     run.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--out", type=Path, default=Path("results"), help="output folder (default results/)")
@@ -63,59 +65,75 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _known(option: str, given: list[str] | None, known: list[str]) -> None:
+    """Every name in `given` must be known: one unknown name anywhere in the list is an error."""
+    unknown = [name for name in given or [] if name not in known]
+    if unknown:
+        raise SystemExit(f"swingbench run: unknown {option} {', '.join(map(repr, unknown))}; "
+                         f"known: {', '.join(known)}")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from harness.timing import pin_threads
 
     if args.threads < 1:
-        raise SystemExit("--threads must be >= 1")
+        raise SystemExit("swingbench run: --threads must be >= 1")
     pin_threads(args.threads)  # before numpy's BLAS, torch or XLA start their pools
 
     from dataclasses import replace
 
     from harness.cases import CASES
     from harness.report import metadata, write_report
-    from harness.runner import run_suites
+    from harness.runner import interrupted_message, open_results, run_suites
     from harness.runs import DEFAULT, FULL, QUICK, default_specs
-    from harness.store import RowStore, atomic_write
+    from harness.store import atomic_write
     from harness.suites import SUITES
+    from solvers import SOLVERS, solver_class
 
+    _known("suite(s)", args.suite, list(SUITES))
+    _known("case(s)", args.case, list(CASES))
+    _known("solver(s)", args.solver, list(SOLVERS))
+    configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
+    _known("config(s)", args.config, configs)
     suites = args.suite or list(SUITES)
-    for name in suites:
-        if name not in SUITES:
-            raise SystemExit(f"unknown suite {name!r}; known: {', '.join(SUITES)}")
-    cases = []
-    for name in args.case:
-        if name not in CASES:
-            raise SystemExit(f"unknown case {name!r}; known: {', '.join(CASES)}")
-        cases.append(CASES[name])
+    cases = [CASES[name] for name in args.case]
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
-    try:
-        specs = default_specs(args.solver, args.config, settings)
-    except ValueError as exc:
-        raise SystemExit(str(exc)) from None
+    specs = default_specs(args.solver, args.config, settings)
     if not specs:
-        raise SystemExit("no solver/config combination selected")
-    store = RowStore(args.out)
-    if not args.resume:
-        store.clear()
+        raise SystemExit("swingbench run: no solver/config combination selected")
+    store, _ = open_results(args.out, args.resume, "run")
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
-    from solvers import SOLVERS
-
-    blas = {name: cls.blas_threads for name, cls in SOLVERS.items() if cls is not None and cls.blas_threads}
-    meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": sys.argv[1:],
+    classes = {spec.solver: solver_class(spec.solver) for spec in specs}
+    blas = {name: cls.blas_threads for name, cls in classes.items() if cls is not None and cls.blas_threads}
+    argv = getattr(args, "argv", sys.argv[1:])
+    meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": argv,
             "blas_threads_by_adapter": blas or "as pinned"}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
-    run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)
-    markdown = write_report(store.rows(), args.out, meta)
+    try:
+        run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)
+    except KeyboardInterrupt:
+        print(interrupted_message(store, argv), file=sys.stderr)
+        return 130
+    rows = _read_rows(store)
+    markdown = write_report(rows, args.out, meta)
     print(markdown)
     if args.update_readme:
         from harness.report import headline_markdown
 
-        update_readme(args.update_readme, headline_markdown(store.rows(), meta), args.out)
+        update_readme(args.update_readme, headline_markdown(rows, meta), args.out)
     print(f"[swingbench] wrote {args.out}/", file=sys.stderr)
     return 0
+
+
+def _read_rows(store) -> list[dict]:
+    """The store's rows, with one warning line on stderr for what had to be skipped."""
+    contents = store.read()
+    warning = contents.warning(store.path)
+    if warning:
+        print(f"[swingbench] warning: {warning}", file=sys.stderr)
+    return contents.rows
 
 
 README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
@@ -139,19 +157,39 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.report import write_report
     from harness.store import RowStore
 
-    store = RowStore(args.directory)
-    rows = store.rows()
+    if not args.directory.is_dir():
+        raise SystemExit(f"swingbench report: {args.directory} is not a folder of results")
+    store = RowStore(args.directory, create=False)
+    rows = _read_rows(store)
     if not rows:
-        raise SystemExit(f"no rows in {store.path}")
+        raise SystemExit(f"swingbench report: no rows in {store.path}")
     meta_path = args.directory / "metadata.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    print(write_report(rows, args.directory, meta))
+    meta = {}
+    if meta_path.exists():
+        try:
+            meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            if not isinstance(meta, dict):
+                raise ValueError("not a JSON object")  # noqa: TRY004 - reported as unreadable
+        except (OSError, ValueError) as exc:
+            print(f"[swingbench] warning: {meta_path} is unreadable ({exc}); the tables are written without it",
+                  file=sys.stderr)
+            meta = {}
+    try:
+        print(write_report(rows, args.directory, meta))
+    except OSError as exc:
+        raise SystemExit(f"swingbench report: cannot write to {args.directory}: {exc.strerror or exc}") from None
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = _parser().parse_args(argv)
-    return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep}[args.command](args)
+    args.argv = argv  # for metadata and the command that resumes
+    try:
+        return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep}[args.command](args)
+    except KeyboardInterrupt:  # before or after the measurements (during them, the commands say more)
+        print("[swingbench] interrupted; what was recorded is kept: add --resume to continue", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -1,25 +1,73 @@
-"""Run suites over solver specifications and cases, one row at a time into a RowStore."""
+"""One runner for `swingbench run` and `swingbench sweep`.
+
+`plan` (or a sweep's grid) gives units: one solver specification on one case with the suites to
+measure on it, built and fitted once. `execute` skips the units of work (a suite of a unit, or its
+fit) whose completion the store already records, runs the rest on an executor (in this process,
+joblib or Dask: `harness.executors`) and records each unit of work as it completes, with its rows
+in one write (`RowStore.record`). Failures and missing dependencies are rows; the run goes on.
+"""
 
 from __future__ import annotations
 
+import math
+import os
+import shlex
+import socket
 import sys
+import tempfile
 import traceback
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 from harness.cases import Case
 from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
-from harness.store import RowStore
+from harness.store import RowStore, StoreContents, unit_key
 from harness.suites import SUITES, Suite
-from harness.timing import blas_threads
+from harness.timing import blas_threads, pinned_threads
 from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
 
-__all__ = ["plan", "run_suites"]
+__all__ = ["FIT", "Unit", "execute", "fit_or_load", "interrupted_message", "open_results", "plan", "run_suites",
+           "run_unit"]
+
+FIT = "fit"  # the unit of work that records a trained (or built) adapter's preparation cost
 
 
-def _failure(exc: BaseException) -> str:
-    return f"failed: {type(exc).__name__}: {exc}"
+@dataclass(frozen=True)
+class Unit:
+    """One solver specification on one case and the suites to measure on it, in one process: the
+    adapter is built (and fitted) once. `columns` are extra constant columns of its rows (a sweep's
+    grid point). Plain, picklable values: executors ship units to worker processes."""
+
+    case: Case
+    spec: SolverSpec
+    suites: tuple[str, ...]
+    columns: tuple[tuple[str, Any], ...] = ()
+
+    def works(self) -> list[str]:
+        """Its units of work, in run order: the fit (when a suite needs a fitted adapter that is
+        installed), then the suites."""
+        needs_fit = solver_class(self.spec.solver) is not None and any(SUITES[s].needs_fit for s in self.suites)
+        return [FIT, *self.suites] if needs_fit else list(self.suites)
+
+    def base(self, settings: Settings) -> dict:
+        """The columns every row of this unit carries (without `suite`)."""
+        base = {"case": self.case.name, **self.spec.key(), "threads": settings.threads, **dict(self.columns)}
+        cls = solver_class(self.spec.solver)
+        if cls is not None:
+            base.update(trains=cls.trains, compiled=cls.compiled, does_work=cls.does_work,
+                        blas_threads=cls.blas_threads or settings.threads)
+        return base
+
+    def key(self, work: str) -> tuple:
+        return unit_key({"suite": work, "case": self.case.name, **self.spec.key()})
+
+    @property
+    def label(self) -> str:
+        return f"{self.spec.label} {self.case.name}"
 
 
 def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
@@ -32,113 +80,179 @@ def _query_variant(spec: SolverSpec) -> bool:
     return any(key in QUERY_ONLY_OPTIONS for key, _ in spec.options)
 
 
-def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> Iterator[tuple[Case, SolverSpec, list[Suite]]]:
-    """(case, spec, suites) units in run order: the forward cases first, then suites with a case of
-    their own; suites that are not measured for every seed run on the first seed only."""
+def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> list[Unit]:
+    """The units of `swingbench run` in run order: the forward cases first, then suites with a case
+    of their own; suites that are not measured for every seed run on the first seed only."""
     targets = [(case, [s for s in suites if s.case is None]) for case in cases]
-    own = {}
+    own: dict[Case, list[Suite]] = {}
     for suite in suites:
         if suite.case is not None:
             own.setdefault(suite.case, []).append(suite)
     targets += list(own.items())
+    units = []
     for case, group in targets:
         for spec in specs:
             cls = solver_class(spec.solver)
-            chosen = [s for s in group if (s.every_seed or _first_seed(spec, specs))
+            chosen = [s.name for s in group if (s.every_seed or _first_seed(spec, specs))
                       and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec))]
             if chosen:
-                yield case, spec, chosen
-
-
-def _unit_key(row: dict) -> tuple:
-    return (row["suite"], row["case"], row["solver"], row["config"], row["variant"], row["seed"])
-
-
-def _progress_bar(total: int, enabled: bool | None):
-    enabled = sys.stderr.isatty() if enabled is None else enabled
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="step", file=sys.stderr, dynamic_ncols=True)
+                units.append(Unit(case, spec, tuple(chosen)))
+    return units
 
 
 def fit_or_load(solver: AbstractSolver, settings: Settings) -> FitReport:
-    """`fit()`, or load the trained model from the cache (with the training cost it had)."""
+    """`fit()`, or load the trained model from the cache (with the training cost it had; a cache
+    entry that fails its checks is moved aside and the model trained again, see
+    `harness.model_cache.load_cached`)."""
     cacheable = Persistable(solver) and settings.cache_dir is not None
     if cacheable and not settings.retrain:
         report = load_cached(solver, settings.cache_dir)
         if report is not None:
             return report._replace(message=f"{report.message} (cached model)".strip())
     report = solver.fit()
-    if cacheable:
-        store_cached(solver, report, settings.cache_dir)
+    if cacheable and math.isfinite(report.loss):  # a diverged model is not kept for the next run
+        try:
+            store_cached(solver, report, settings.cache_dir)
+        except OSError as exc:  # a full or read-only disk costs the cache, not the measurement
+            print(f"[swingbench] model cache: cannot store in {settings.cache_dir}: {exc}", file=sys.stderr)
     return report
+
+
+def _failure(exc: BaseException) -> str:
+    return f"failed: {type(exc).__name__}: {exc}"
+
+
+def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tuple[str, list[dict]]]:
+    """Measure the units of work `todo` (names from `unit.works()`) of `unit` in this process and
+    yield (work, rows) as each completes. The adapter is built and, when a suite needs it, fitted or
+    loaded from the model cache even if its fit is already recorded. Never raises for a failing
+    adapter: its units of work get one 'failed: ...' row each (a missing dependency 'skipped: ...')."""
+    todo = [w for w in unit.works() if w in set(todo)]
+    base = {**unit.base(settings), "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    cls = solver_class(unit.spec.solver)
+    if cls is None:
+        for work in todo:
+            yield work, [{"suite": work, **base, "status": UNAVAILABLE[unit.spec.solver]}]
+        return
+    suites = [w for w in todo if w != FIT]
+    # the run's thread count, for adapters with a `threads` option the spec does not set
+    options = {"threads": settings.threads} if "threads" in cls.OPTIONS and "threads" not in dict(unit.spec.options) \
+        else {}
+    with blas_threads(cls.blas_threads):
+        try:
+            solver = unit.spec.make(unit.case, **options)
+            if any(SUITES[s].needs_fit for s in suites) or FIT in todo:
+                report = fit_or_load(solver, settings)
+                if FIT in todo:
+                    yield FIT, [{"suite": FIT, **base, "status": "ok", "fit_s": report.seconds,
+                                 "iterations": report.iterations, "loss": report.loss, "message": report.message}]
+        except Exception as exc:  # noqa: BLE001 - recorded as rows, the run goes on
+            print(f"[swingbench] {unit.label}: {_failure(exc)}", file=sys.stderr)
+            traceback.print_exc()
+            for work in todo:
+                yield work, [{"suite": work, **base, "status": _failure(exc)}]
+            return
+        for suite in suites:
+            try:
+                rows = SUITES[suite].run(solver, unit.case, settings)
+            except Exception as exc:  # noqa: BLE001
+                print(f"[swingbench] {unit.label} {suite}: {_failure(exc)}", file=sys.stderr)
+                traceback.print_exc()
+                rows = [{"status": _failure(exc)}]
+            yield suite, [{"suite": suite, **base, "status": "ok", **row} for row in rows]
+
+
+def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) -> list[tuple[str, list[dict]]]:
+    """`run_unit` in a worker process pinned to `settings.threads` threads; every part at once."""
+    with pinned_threads(settings.threads):
+        return list(run_unit(unit, settings, todo))
+
+
+def _progress_bar(total: int, enabled: bool | None):
+    """The one progress policy: a bar of units of work on stderr, by default only on a terminal."""
+    if not (sys.stderr.isatty() if enabled is None else enabled):
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="work", file=sys.stderr, dynamic_ncols=True)
+
+
+def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor=None,
+            progress: bool | None = None, done: set[tuple] | None = None) -> dict[str, int]:
+    """Run every unit of work of `units` not in `done` (keys of completed units, e.g. from
+    `RowStore.prepare_resume`) on `executor` (default: this process, `harness.executors.inline`)
+    and record each as it completes. Returns counts of units of work: {"ok", "failed", "lost"}
+    (lost: the executor broke before returning them; nothing is recorded, `--resume` runs them)."""
+    from harness import executors
+
+    done = set() if done is None else done
+    jobs = []
+    for unit in units:
+        todo = tuple(w for w in unit.works() if unit.key(w) not in done)
+        if todo:
+            jobs.append((unit, todo))
+    counts = {"ok": 0, "failed": 0, "lost": 0}
+    bar = _progress_bar(sum(len(todo) for _, todo in jobs), progress)
+    try:
+        for unit, work, rows in (executor or executors.inline)(jobs, settings):
+            if rows is None:
+                counts["lost"] += 1
+            else:
+                store.record({"suite": work, "case": unit.case.name, **unit.spec.key()}, rows)
+                counts["ok" if all(r.get("status") == "ok" for r in rows) else "failed"] += 1
+            if bar:
+                bar.set_description(f"{unit.label} {work}")
+                bar.update(1)
+    finally:
+        if bar:
+            bar.close()
+    return counts
 
 
 def run_suites(
     specs: Iterable[SolverSpec], cases: Iterable[Case], suites: Iterable[str], settings: Settings,
     store: RowStore, progress: bool | None = None, resume: bool = False,
-) -> None:
-    """For each unit of `plan`: build the adapter, `fit()` it once if a suite needs it (a 'fit' row
-    with its cost; trained models come from the cache unless `settings.retrain`), then run the
-    suites. A missing dependency gives 'skipped' rows and a failure 'failed' rows; the run goes on
-    and no finished row is lost. With `resume`, units already in `store` are not run again."""
+) -> dict[str, int]:
+    """`execute` the `plan` of `specs` x `cases` x `suites` in this process. With `resume`, what
+    the store records as complete is not run again (see `RowStore.prepare_resume`)."""
     names = list(suites)
     unknown = [s for s in names if s not in SUITES]
     if unknown:
         raise ValueError(f"unknown suite(s) {', '.join(unknown)}; known: {', '.join(SUITES)}")
-    specs, cases = list(specs), list(cases)
-    units = list(plan(specs, cases, [SUITES[n] for n in names]))
-    done = {_unit_key(r) for r in store.rows() if not str(r.get("status", "")).startswith("failed")} if resume else set()
-    bar = _progress_bar(sum(len(group) + 1 for _, _, group in units), progress)
-    for case, spec, group in units:
-        cls = solver_class(spec.solver)
-        base = {"case": case.name, **spec.key(), "threads": settings.threads}
-        if cls is not None:
-            base.update(trains=cls.trains, compiled=cls.compiled, does_work=cls.does_work,
-                        blas_threads=cls.blas_threads or settings.threads)
-        todo = [s for s in group if _unit_key({"suite": s.name, **base}) not in done]
-        if bar:
-            bar.set_description(f"{spec.label} {case.name}")
-            bar.update(1 + len(group) - len(todo))
-        if not todo:
-            continue
-        if cls is None:
-            for suite in todo:
-                store.add({"suite": suite.name, **base, "status": UNAVAILABLE[spec.solver]})
-            continue
-        with blas_threads(cls.blas_threads):
-            _run_unit(spec, case, todo, base, settings, store, bar)
-    if bar:
-        bar.close()
+    units = plan(list(specs), list(cases), [SUITES[n] for n in names])
+    done = store.prepare_resume().completed if resume else set()
+    return execute(units, settings, store, progress=progress, done=done)
 
 
-def _run_unit(spec: SolverSpec, case: Case, todo: list[Suite], base: dict, settings: Settings,
-              store: RowStore, bar) -> None:
-    """Build, fit (or load) and run the suites `todo` of one (spec, case); failures become rows."""
+def open_results(out: Path, resume: bool, command: str) -> tuple[RowStore, StoreContents | None]:
+    """The RowStore of the output folder `out`, checked before any work: a usable folder (made if
+    missing), writable. Without `resume` earlier rows are removed; with it, an interrupted unit is set
+    aside (`RowStore.prepare_resume`). Problems exit with one line (SystemExit)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise SystemExit(f"swingbench {command}: --out {out} is a file, not a folder")
     try:
-        solver = spec.make(case)
-        if any(s.needs_fit for s in todo):
-            report = fit_or_load(solver, settings)
-            store.add({"suite": "fit", **base, "status": "ok", "fit_s": report.seconds,
-                       "iterations": report.iterations, "loss": report.loss, "message": report.message})
-    except Exception as exc:  # noqa: BLE001 - recorded as a row, the run goes on
-        traceback.print_exc()
-        for suite in ["fit", *(s.name for s in todo)]:
-            store.add({"suite": suite, **base, "status": _failure(exc)})
-        if bar:
-            bar.update(len(todo))
-        return
-    for suite in todo:
-        if bar:
-            bar.set_description(f"{spec.label} {case.name} {suite.name}")
-        try:
-            rows = suite.run(solver, case, settings)
-        except Exception as exc:  # noqa: BLE001
-            traceback.print_exc()
-            rows = [{"status": _failure(exc)}]
-        for row in rows:
-            store.add({"suite": suite.name, **base, "status": "ok", **row})
-        if bar:
-            bar.update(1)
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise SystemExit(f"swingbench {command}: cannot write to --out {out}: {exc.strerror or exc}") from None
+    store = RowStore(out)
+    if not resume:
+        store.clear()
+        return store, None
+    try:
+        contents = store.prepare_resume()
+    except ValueError as exc:
+        raise SystemExit(f"swingbench {command}: {exc}") from None
+    if contents.incomplete_rows or contents.bad_lines:
+        print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
+              f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
+    return store, contents
+
+
+def interrupted_message(store: RowStore, argv: list[str]) -> str:
+    """The one line printed on Ctrl-C: what was kept and the command that continues."""
+    kept = len(store.read().completed)
+    again = shlex.join(["swingbench", *argv, *([] if "--resume" in argv else ["--resume"])])
+    return f"[swingbench] interrupted: {kept} completed unit(s) of work kept in {store.path}; continue with: {again}"

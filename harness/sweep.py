@@ -24,28 +24,25 @@ Every key of "grid" and "options" must be an option of the adapter (`SOLVERS[nam
 point is checked by constructing the adapter (which validates the option values) before any run
 starts; a bad spec stops with a message naming the key.
 
-Each run is `run_task(SweepTask)`: a pure function of a small picklable task (adapter, config,
-options, seed, case, threads=1), executed in a worker process. It pins the worker to one thread
-(OMP/BLAS environment variables and threadpoolctl, `torch.set_num_threads(1)` when torch is loaded,
-and XLA_FLAGS before jax can be imported), builds the adapter, fits it (`harness.runner.fit_or_load`:
-trained models come from the model cache unless --retrain, with the training cost recorded when
-they were trained), runs `harness.suites.accuracy.accuracy` and returns plain dict rows: one per
-accuracy measurement, with the swept values as `p_<option>` columns, `fit_s`, `iterations`,
-`loss`, `task_s` (wall time of the whole run) and `status`. A run that raises returns one row with
-`status: "failed: ..."` and the sweep goes on.
+Each run is one unit of `harness.runner` (the runner of `swingbench run`: one row store, one
+resume rule, one thread-pinning helper, one progress bar): the adapter is built, fitted
+(`harness.runner.fit_or_load`: trained models come from the model cache unless --retrain) and its
+accuracy measured (`harness.suites.accuracy`), in a worker process pinned to 1 thread. Its rows are a
+`fit` row (fit_s, iterations, loss) and the accuracy rows, with the swept values as `p_<option>`
+columns and the grid point's index as `point`. A run that raises gives `failed: ...` rows and the
+sweep goes on.
 
-Executors (one task function, only the executor differs): by default joblib's loky backend with
+Executors (`harness.executors`, only the executor differs): by default joblib's loky backend with
 --workers processes of 1 thread each; with --scheduler ADDRESS an existing dask.distributed
 cluster (its workers should run 1 thread each, e.g. `dask worker ADDRESS --nthreads 1`, and have
 swingbench installed), with --dask-local a LocalCluster of --workers processes, 1 thread each.
 
-Output in --out: rows.jsonl (appended as results arrive: an interrupted sweep keeps its finished
-runs; --resume skips them), then, written atomically, sweep.csv (tidy: every row), sweep.md (per
-grid point and case: median and [min, max] over seeds of the relative L2 error of delta and omega
-against the DOP853 reference, median fit seconds, runs ok/failed) and metadata.json.
+Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
+finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
+sweep.md (per grid point and case: median and [min, max] over seeds of the relative L2 error of delta
+and omega against the DOP853 reference, median fit seconds, runs ok/failed) and metadata.json.
 
-This module imports only the standard library at the top: it is imported by the CLI and unpickled
-in fresh workers, where the thread settings must come before numpy, torch or jax are loaded.
+This module imports only the standard library at the top: the CLI imports it to build its parser.
 """
 
 from __future__ import annotations
@@ -55,74 +52,23 @@ import contextlib
 import itertools
 import json
 import math
-import os
-import re
-import socket
 import sys
-import time
-import traceback
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["SweepSpec", "SweepTask", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "run_sweep",
-           "run_task", "summary_table"]
+__all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "summary_table"]
 
 SPEC_KEYS = ("solver", "config", "cases", "seeds", "grid", "options", "description")
 DEFAULT_CASES = ("smib-inference",)
 # Set by the sweep, never by a spec: the seed comes from "seeds", every run gets `threads` = 1.
 RESERVED_OPTIONS = {"seed": 'set seeds with the top-level "seeds" list',
                     "threads": "every sweep run uses 1 thread"}
-# Worker-side defaults for adapters that have these options (a spec may override "progress").
-WORKER_OPTIONS = {"threads": 1, "progress": False}
-THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
-              "VECLIB_MAXIMUM_THREADS", "BLIS_NUM_THREADS")
 KEY_COLUMNS = ("case", "solver", "config", "variant", "seed")
 
 
 # --------------------------------------------------------------------------------------------- spec
-
-@dataclass(frozen=True)
-class SweepTask:
-    """One run: picklable, plain values only. `options` are every override (fixed and swept) as
-    sorted (name, value) pairs, `swept` the names of the grid options, `point` the index of the
-    grid point in the spec's product order."""
-
-    solver: str
-    config: str
-    options: tuple[tuple[str, Any], ...]
-    seed: int | None
-    case: str
-    point: int = 0
-    swept: tuple[str, ...] = ()
-    threads: int = 1
-    retrain: bool = False
-    cache_dir: str | None = ".cache/models"
-
-    @property
-    def variant(self) -> str:
-        return ",".join(f"{k}={v}" for k, v in self.options)
-
-    def key(self) -> tuple:
-        """What identifies the run in rows.jsonl (the KEY_COLUMNS)."""
-        return (self.case, self.solver, self.config, self.variant, -1 if self.seed is None else self.seed)
-
-    def base_row(self) -> dict:
-        """The run's identifying columns, without importing anything."""
-        values = dict(self.options)
-        return {"suite": "accuracy", "case": self.case, "solver": self.solver, "config": self.config,
-                "variant": self.variant, "seed": -1 if self.seed is None else self.seed,
-                "point": self.point, **{f"p_{name}": _plain(values[name]) for name in self.swept},
-                "threads": self.threads}
-
-    @property
-    def label(self) -> str:
-        swept = dict(self.options)
-        point = ",".join(f"{k}={swept[k]}" for k in self.swept)
-        seed = "" if self.seed is None else f" seed={self.seed}"
-        return f"{self.solver}[{self.config}{',' if point else ''}{point}]{seed} {self.case}"
-
 
 @dataclass(frozen=True)
 class SweepSpec:
@@ -141,15 +87,20 @@ class SweepSpec:
         names = [name for name, _ in self.grid]
         return [dict(zip(names, values)) for values in itertools.product(*(v for _, v in self.grid))]
 
-    def tasks(self, retrain: bool = False, cache_dir: str | None = ".cache/models") -> list[SweepTask]:
-        """Every run: for each case, grid point and seed."""
-        swept = tuple(name for name, _ in self.grid)
+    def units(self) -> list:
+        """Every run as a `harness.runner.Unit`: for each case, grid point and seed, in that order."""
+        from harness.cases import CASES
+        from harness.runner import Unit
+        from harness.runs import SolverSpec
+
+        swept = [name for name, _ in self.grid]
         out = []
         for case in self.cases:
             for index, point in enumerate(self.points()):
                 options = tuple(sorted({**dict(self.options), **point}.items()))
-                out.extend(SweepTask(self.solver, self.config, options, seed, case, index, swept,
-                                     retrain=retrain, cache_dir=cache_dir) for seed in self.seeds)
+                columns = (("point", index), *((f"p_{name}", _plain(point[name])) for name in swept))
+                out.extend(Unit(CASES[case], SolverSpec(self.solver, self.config, options, seed), ("accuracy",),
+                                columns) for seed in self.seeds)
         return out
 
     def as_json(self) -> dict:
@@ -298,215 +249,6 @@ def load_spec(path: Path, check: bool = True) -> SweepSpec:
         raise ValueError(f"{path}: {exc}") from None
 
 
-# ------------------------------------------------------------------------------------------- worker
-
-@contextlib.contextmanager
-def pinned_threads(n: int) -> Iterator[None]:
-    """Pin this process to `n` threads for the duration: OMP/BLAS environment variables, PJRT_NPROC
-    (the size of XLA's CPU pool) and XLA_FLAGS (read by libraries loaded from now on: XLA's backend
-    must not have started yet), threadpoolctl for the BLAS/OpenMP pools already loaded;
-    `limit_torch` does torch once it is imported. The environment and limits are restored
-    afterwards (what was loaded inside keeps its setting)."""
-    saved = {var: os.environ.get(var) for var in (*THREAD_ENV, "PJRT_NPROC", "XLA_FLAGS")}
-    for var in (*THREAD_ENV, "PJRT_NPROC"):
-        os.environ[var] = str(n)
-    flags = re.sub(r"(--)?xla_cpu_multi_thread_eigen=\S*", "", os.environ.get("XLA_FLAGS", ""))
-    os.environ["XLA_FLAGS"] = " ".join([*flags.split(), "--xla_cpu_multi_thread_eigen=false"])
-    torch_before = _torch_threads()
-    try:
-        with contextlib.ExitStack() as stack:
-            try:
-                from threadpoolctl import threadpool_limits
-            except ImportError:  # pragma: no cover - a dependency of swingbench
-                pass
-            else:
-                stack.enter_context(threadpool_limits(n))
-            yield
-    finally:
-        for var, value in saved.items():
-            if value is None:
-                os.environ.pop(var, None)
-            else:
-                os.environ[var] = value
-        if torch_before is not None:
-            sys.modules["torch"].set_num_threads(torch_before)
-
-
-def _torch_threads() -> int | None:
-    torch = sys.modules.get("torch")
-    return torch.get_num_threads() if torch is not None else None
-
-
-def limit_torch(n: int) -> None:
-    """`torch.set_num_threads(n)` (and inter-op threads where still allowed) if torch is loaded."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        return
-    torch.set_num_threads(n)
-    with contextlib.suppress(RuntimeError):  # only allowed before any inter-op work
-        torch.set_num_interop_threads(n)
-
-
-def _blas_threads() -> int | None:
-    try:
-        from threadpoolctl import threadpool_info
-    except ImportError:  # pragma: no cover
-        return None
-    counts = [info.get("num_threads") for info in threadpool_info() if info.get("num_threads")]
-    return max(counts) if counts else None
-
-
-def _failure(exc: BaseException) -> str:
-    return f"failed: {type(exc).__name__}: {exc}"
-
-
-def run_task(task: SweepTask) -> list[dict]:
-    """Run one sweep point in this process on `task.threads` threads: build, fit (or load from the
-    model cache), measure accuracy; no latency. Returns plain dict rows; never raises for a
-    failing run (one row with status "failed: ...")."""
-    start = time.perf_counter()
-    base = {**task.base_row(), "worker": f"{socket.gethostname()}:{os.getpid()}"}
-    fit: dict = {}
-    with pinned_threads(task.threads):
-        try:
-            from harness.cases import CASES
-            from harness.runner import fit_or_load
-            from harness.runs import Settings, SolverSpec
-            from harness.suites.accuracy import accuracy
-            from solvers import SOLVERS
-
-            limit_torch(task.threads)  # the registry may have imported torch
-            spec = SolverSpec(task.solver, task.config, task.options, task.seed)
-            case = CASES[task.case]
-            cls = SOLVERS.get(task.solver)
-            worker_options = {**WORKER_OPTIONS, "threads": task.threads}
-            extra = {k: v for k, v in worker_options.items()
-                     if cls is not None and k in cls.OPTIONS and k not in dict(task.options)}
-            solver = spec.make(case, **extra)
-            limit_torch(task.threads)  # an adapter may import torch when built
-            settings = Settings(name="sweep", threads=task.threads, retrain=task.retrain,
-                                cache_dir=None if task.cache_dir is None else Path(task.cache_dir))
-            report = fit_or_load(solver, settings)
-            fit = {"fit_s": report.seconds, "iterations": report.iterations, "loss": report.loss,
-                   "fit_message": report.message}
-            rows = accuracy(solver, case, settings)
-            blas = _blas_threads()
-        except Exception as exc:  # noqa: BLE001 - a failed run is a row, the sweep goes on
-            print(f"[swingbench sweep] {task.label}: {_failure(exc)}", file=sys.stderr)
-            traceback.print_exc()
-            return [{**base, **fit, "status": _failure(exc), "task_s": time.perf_counter() - start}]
-    task_s = time.perf_counter() - start
-    return [{**base, **fit, "status": "ok", **row, "task_s": task_s, "blas_threads": blas} for row in rows]
-
-
-# ---------------------------------------------------------------------------------------- executors
-
-def _joblib_results(tasks: list[SweepTask], workers: int) -> Iterator[list[dict]]:
-    """Rows of each run as it finishes, from loky worker processes of 1 thread each. If the pool
-    itself breaks (a worker killed), the runs not yet returned become failed rows."""
-    from joblib import Parallel, delayed, parallel_config
-
-    done: set[tuple] = set()
-    try:
-        with parallel_config(backend="loky", inner_max_num_threads=1):
-            parallel = Parallel(n_jobs=workers, return_as="generator_unordered", batch_size=1,
-                                pre_dispatch="n_jobs")
-            for rows in parallel(delayed(run_task)(task) for task in tasks):
-                done.add(_row_key(rows[0]))
-                yield rows
-    except Exception as exc:  # noqa: BLE001 - e.g. TerminatedWorkerError: record, do not lose rows
-        print(f"[swingbench sweep] the joblib pool failed: {_failure(exc)}", file=sys.stderr)
-        for task in tasks:
-            if task.key() not in done:
-                yield [{**task.base_row(), "status": f"{_failure(exc)} (executor)"}]
-
-
-def _dask_results(tasks: list[SweepTask], client) -> Iterator[list[dict]]:
-    """Rows of each run as it finishes, from a dask.distributed client; a task that raises on the
-    cluster's side (e.g. KilledWorker) becomes a failed row."""
-    from distributed import as_completed
-
-    futures = client.map(run_task, tasks, pure=False, retries=0)
-    owner = {future.key: task for future, task in zip(futures, tasks)}
-    try:
-        for future in as_completed(futures):
-            task = owner[future.key]
-            try:
-                rows = future.result()
-            except Exception as exc:  # noqa: BLE001
-                rows = [{**task.base_row(), "status": f"{_failure(exc)} (executor)"}]
-            future.release()
-            yield rows
-    finally:
-        client.cancel([f for f in futures if not f.done()])
-
-
-@contextlib.contextmanager
-def _dask_client(scheduler: str | None, workers: int) -> Iterator[Any]:
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise SystemExit("--scheduler/--dask-local need dask.distributed: "
-                         "pip install 'swingbench[dask]'") from None
-    if scheduler is not None:
-        try:
-            client = Client(scheduler)
-        except (OSError, ValueError) as exc:
-            raise SystemExit(f"swingbench sweep: cannot connect to the dask scheduler {scheduler}: {exc}") from None
-        with client:
-            threads = client.nthreads()
-            if any(n > 1 for n in threads.values()):
-                print(f"[swingbench sweep] warning: dask workers with more than 1 thread ({threads}); runs on "
-                      "one worker share its cores and their fit times contend", file=sys.stderr)
-            yield client
-        return
-    env = {var: "1" for var in THREAD_ENV}
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                      env=env) as cluster, Client(cluster) as client:
-        yield client
-
-
-def _row_key(row: Mapping) -> tuple:
-    return tuple(row.get(k) for k in KEY_COLUMNS)
-
-
-def _progress_bar(total: int, enabled: bool | None):
-    if not (sys.stderr.isatty() if enabled is None else enabled):
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="run", file=sys.stderr, dynamic_ncols=True)
-
-
-def run_sweep(
-    tasks: list[SweepTask], store, *, workers: int = 2, scheduler: str | None = None,
-    dask_local: bool = False, progress: bool | None = None,
-) -> dict[str, int]:
-    """Run `tasks` on the chosen executor (joblib loky by default, dask with `scheduler` or
-    `dask_local`), appending each run's rows to `store` as they arrive. Returns counts of runs:
-    {"ok", "failed", "executor_failed"} (the last: lost to the executor, e.g. a killed worker)."""
-    bar = _progress_bar(len(tasks), progress)
-    counts = {"ok": 0, "failed": 0, "executor_failed": 0}
-    with contextlib.ExitStack() as stack:
-        if scheduler is not None or dask_local:
-            client = stack.enter_context(_dask_client(scheduler, workers))
-            results = _dask_results(tasks, client)
-        else:
-            results = _joblib_results(tasks, workers)
-        stack.callback(results.close)
-        for rows in results:
-            store.extend(rows)
-            status = str(rows[0].get("status", ""))
-            kind = "ok" if status == "ok" else "executor_failed" if status.endswith("(executor)") else "failed"
-            counts[kind] += 1
-            if bar:
-                bar.update(1)
-                bar.set_postfix(failed=counts["failed"] + counts["executor_failed"], refresh=False)
-    if bar:
-        bar.close()
-    return counts
-
-
 # ------------------------------------------------------------------------------------------ summary
 
 def summary_table(frame) -> Any:
@@ -518,13 +260,14 @@ def summary_table(frame) -> Any:
         return pd.DataFrame()
     params = [c for c in frame.columns if c.startswith("p_")]
     groups = ["case", "solver", "config", "point"]
-    runs = frame.drop_duplicates(subset=list(KEY_COLUMNS))
-    ok = runs["status"] == "ok"
-    runs = runs.assign(ok=ok, failed=~ok, fit_s=runs.reindex(columns=["fit_s"])["fit_s"].where(ok))
-    table = runs.groupby(groups, sort=False).agg(
-        **{p: (p, "first") for p in params}, runs_ok=("ok", "sum"), failed=("failed", "sum"),
-        fit_s_median=("fit_s", "median"))
-    good = frame[frame["status"] == "ok"].reindex(columns=[*groups, "quantity", "against", "rel_l2"])
+    accuracy = frame[frame["suite"] == "accuracy"]
+    runs = accuracy.groupby([*groups, *KEY_COLUMNS[3:]], sort=False, dropna=False)["status"].agg(
+        lambda s: (s == "ok").all()).rename("ok").reset_index()
+    fits = frame[(frame["suite"] == "fit") & (frame["status"] == "ok")].reindex(columns=[*groups, "fit_s"])
+    table = runs.groupby(groups, sort=False).agg(runs_ok=("ok", "sum"), failed=("ok", lambda s: int((~s).sum())))
+    table = frame.groupby(groups, sort=False)[params].first().join(table, how="right")
+    table = table.join(fits.groupby(groups, sort=False)["fit_s"].median().rename("fit_s_median"), how="left")
+    good = accuracy[accuracy["status"] == "ok"].reindex(columns=[*groups, "quantity", "against", "rel_l2"])
     good = good[good["against"] == "reference"]
     for quantity in ("delta", "omega"):
         stats = good[good["quantity"] == quantity].groupby(groups, sort=False)["rel_l2"].agg(
@@ -626,7 +369,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     where.add_argument("--dask-local", action="store_true",
                        help="run on a local dask.distributed cluster of --workers processes, 1 thread each")
     sweep.add_argument("--resume", action="store_true",
-                       help="keep OUT/rows.jsonl and run only what it does not hold yet (failed runs run again)")
+                       help="keep OUT/rows.jsonl and run only the runs it does not record as complete (a failed "
+                            "run is a result: it is kept)")
     sweep.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")
     sweep.add_argument("--dry-run", action="store_true", help="validate SPEC, print the runs and exit")
     sweep.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
@@ -635,46 +379,51 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """`swingbench sweep`: 0 when the sweep finished (failed runs are rows), 1 if the executor broke."""
+    """`swingbench sweep`: 0 when every run was measured (failed runs are rows), 1 if the executor
+    lost some (`--resume` runs them), 130 on Ctrl-C."""
     if args.workers < 1:
-        raise SystemExit("--workers must be >= 1")
+        raise SystemExit("swingbench sweep: --workers must be >= 1")
     try:
         spec = load_spec(args.spec)
     except ValueError as exc:
         raise SystemExit(f"swingbench sweep: {exc}") from None
-    tasks = spec.tasks(retrain=args.retrain)
+    units = spec.units()
     if args.dry_run:
-        for task in tasks:
-            print(task.label)
-        print(f"[swingbench sweep] {len(tasks)} runs", file=sys.stderr)
+        for unit in units:
+            print(unit.label)
+        print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
         return 0
 
+    from harness import executors
     from harness.report import metadata
-    from harness.store import RowStore, atomic_write
+    from harness.runner import execute, interrupted_message, open_results
+    from harness.runs import Settings
+    from harness.store import atomic_write
 
-    store = RowStore(args.out)
-    if args.resume:  # keep the finished runs; failed ones run again (their rows are dropped)
-        kept = [r for r in store.rows() if not str(r.get("status", "")).startswith("failed")]
-        atomic_write(store.path, "".join(json.dumps(r, allow_nan=True) + "\n" for r in kept))
-        done = {_row_key(r) for r in kept}
-        todo = [t for t in tasks if t.key() not in done]
-    else:
-        store.clear()
-        todo = tasks
+    store, contents = open_results(args.out, args.resume, "sweep")
+    settings = Settings(name="sweep", threads=1, retrain=args.retrain)
     executor = (f"dask scheduler {args.scheduler}" if args.scheduler else
                 f"dask LocalCluster, {args.workers} worker process(es)" if args.dask_local else
                 f"joblib loky, {args.workers} worker process(es)")
     meta = {**metadata(1), "command": "sweep", "spec": spec.as_json(), "spec_file": str(args.spec),
-            "runs": len(tasks), "executor": executor, "workers": args.workers, "argv": sys.argv[1:]}
+            "runs": len(units), "executor": executor, "workers": args.workers, "argv": getattr(args, "argv", sys.argv[1:])}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
-    print(f"[swingbench sweep] {len(todo)} of {len(tasks)} runs on {executor}", file=sys.stderr)
-    counts = {"ok": 0, "failed": 0, "executor_failed": 0}
-    if todo:
-        progress = {"auto": None, "on": True, "off": False}[args.progress]
-        counts = run_sweep(todo, store, workers=args.workers, scheduler=args.scheduler,
-                           dask_local=args.dask_local, progress=progress)
+    done = contents.completed if contents else set()
+    print(f"[swingbench sweep] {len(units)} runs on {executor}"
+          + (f"; {len(done)} unit(s) of work already recorded" if done else ""), file=sys.stderr)
+    progress = {"auto": None, "on": True, "off": False}[args.progress]
+    try:
+        with contextlib.ExitStack() as stack:
+            if args.scheduler is not None or args.dask_local:
+                run = executors.dask(stack.enter_context(executors.dask_client(args.scheduler, args.workers)))
+            else:
+                run = executors.joblib(args.workers)
+            counts = execute(units, settings, store, run, progress=progress, done=done)
+    except KeyboardInterrupt:
+        print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)
+        return 130
     markdown = write_outputs(store, args.out, meta)
     print(markdown)
-    print(f"[swingbench sweep] {counts['ok']} ok, {counts['failed']} failed, {counts['executor_failed']} lost to "
+    print(f"[swingbench sweep] {counts['ok']} ok, {counts['failed']} failed, {counts['lost']} lost to "
           f"the executor; wrote {args.out}/", file=sys.stderr)
-    return 1 if counts["executor_failed"] else 0
+    return 1 if counts["lost"] else 0

@@ -4,32 +4,68 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
+import sys
 import time
 from collections.abc import Callable, Iterator
 from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["THREAD_ENV", "Timing", "blas_threads", "pin_threads", "time_call"]
+__all__ = ["THREAD_ENV", "Timing", "blas_threads", "pin_threads", "pinned_threads", "time_call"]
 
-THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
+              "VECLIB_MAXIMUM_THREADS", "BLIS_NUM_THREADS")
+_PINNED_ENV = (*THREAD_ENV, "SWINGBENCH_THREADS", "PJRT_NPROC", "XLA_FLAGS")
 
 
 def pin_threads(n: int) -> None:
-    """Pin BLAS/OpenMP and XLA to `n` threads (torch: the adapter's `threads` option). Environment
-    variables only take effect in libraries not yet loaded, so call this first thing in a process
-    (the CLI and asv do). XLA sizes its CPU pool from PJRT_NPROC when its backend starts (see
-    `solvers.pinn.jax_pinn`, which sets it again from its own `threads` option)."""
-    for var in THREAD_ENV:
+    """Pin this process to `n` threads: the OMP/BLAS environment variables, PJRT_NPROC (the size of
+    XLA's CPU pool) and, for 1 thread, XLA_FLAGS without Eigen's thread pool, all read by libraries
+    loaded (XLA: started) from now on, so call this first thing in a process (the CLI, asv and the
+    runner's workers do); threadpoolctl for the BLAS/OpenMP pools already loaded, and torch when it
+    is imported. The adapters' own `threads` options are set by the runner from the same number."""
+    for var in (*THREAD_ENV, "SWINGBENCH_THREADS", "PJRT_NPROC"):
         os.environ[var] = str(n)
-    os.environ["SWINGBENCH_THREADS"] = str(n)
-    os.environ["PJRT_NPROC"] = str(n)
+    if n == 1:
+        flags = re.sub(r"(--)?xla_cpu_multi_thread_eigen=\S*", "", os.environ.get("XLA_FLAGS", "")).split()
+        os.environ["XLA_FLAGS"] = " ".join([*flags, "--xla_cpu_multi_thread_eigen=false"])
     try:
         from threadpoolctl import threadpool_limits
-    except ImportError:
+    except ImportError:  # pragma: no cover - a dependency of swingbench
         pass
     else:
         threadpool_limits(n)
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(n)
+
+
+@contextlib.contextmanager
+def pinned_threads(n: int) -> Iterator[None]:
+    """`pin_threads(n)` for the duration of the block; the environment, the BLAS/OpenMP limits and
+    torch's thread count are restored afterwards (a library loaded inside keeps its setting)."""
+    saved = {var: os.environ.get(var) for var in _PINNED_ENV}
+    torch = sys.modules.get("torch")
+    torch_before = torch.get_num_threads() if torch is not None else None
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover
+        limits = contextlib.nullcontext()
+    else:
+        limits = threadpool_limits(None)  # records the current limits, restored on exit
+    try:
+        with limits:
+            pin_threads(n)
+            yield
+    finally:
+        for var, value in saved.items():
+            if value is None:
+                os.environ.pop(var, None)
+            else:
+                os.environ[var] = value
+        if torch_before is not None:
+            sys.modules["torch"].set_num_threads(torch_before)
 
 
 @contextlib.contextmanager

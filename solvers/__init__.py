@@ -1,13 +1,15 @@
 """The registry of solver adapters: one dict for the CLI, the tests and asv.
 
-An adapter whose optional dependency is missing stays listed in `SOLVERS` with the reason in
-`UNAVAILABLE`; `make_solver` then raises `SolverUnavailable` ("not installed") instead of crashing
-the others.
+An adapter whose optional dependency is missing stays listed in `SOLVERS` (as None) with the reason
+in `UNAVAILABLE`; `make_solver` then raises `SolverUnavailable` ("not installed") instead of crashing
+the others. Adapter modules are imported on first use.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
+from collections.abc import Iterator, MutableMapping
 from typing import Any
 
 from harness.cases import Case
@@ -32,16 +34,53 @@ class SolverUnavailable(RuntimeError):
     """The adapter's optional dependency is not installed."""
 
 
-SOLVERS: dict[str, type[AbstractSolver] | None] = {}
 UNAVAILABLE: dict[str, str] = {}
-for _name, (_module, _cls, _package) in _ADAPTERS.items():
-    try:
-        importlib.import_module(_package)
-    except ImportError:
-        SOLVERS[_name] = None
-        UNAVAILABLE[_name] = f"skipped: {_package} not installed"
-        continue
-    SOLVERS[_name] = getattr(importlib.import_module(_module), _cls)
+
+
+class _Registry(MutableMapping[str, "type[AbstractSolver] | None"]):
+    """name -> adapter class, or None when its optional package is missing (the reason in
+    `UNAVAILABLE`). Presence is checked without importing (`importlib.util.find_spec`); an adapter's
+    module is imported the first time its class is asked for, so a run of one adapter does not pay
+    for importing torch and jax. A module that fails to import counts as unavailable, with why.
+    Assigning a class (or None) registers an adapter directly (tests, plugins)."""
+
+    def __init__(self, adapters: dict[str, tuple[str, str, str]]) -> None:
+        self._adapters: dict[str, tuple[str, str, str] | None] = dict(adapters)
+        self._classes: dict[str, type[AbstractSolver] | None] = {}
+        for name, (_, _, package) in adapters.items():
+            if importlib.util.find_spec(package) is None:
+                self._classes[name] = None
+                UNAVAILABLE[name] = f"skipped: {package} not installed"
+
+    def __getitem__(self, name: str) -> type[AbstractSolver] | None:
+        if name not in self._classes:
+            module, cls, package = self._adapters[name]  # KeyError for an unknown name, as a dict
+            try:
+                self._classes[name] = getattr(importlib.import_module(module), cls)
+            except ImportError as exc:
+                self._classes[name] = None
+                UNAVAILABLE[name] = f"skipped: {package} cannot be imported ({exc})"
+        return self._classes[name]
+
+    def __setitem__(self, name: str, cls: type[AbstractSolver] | None) -> None:
+        self._adapters[name] = None
+        self._classes[name] = cls
+
+    def __delitem__(self, name: str) -> None:
+        del self._adapters[name]
+        self._classes.pop(name, None)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._adapters)
+
+    def __len__(self) -> int:
+        return len(self._adapters)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._adapters
+
+
+SOLVERS = _Registry(_ADAPTERS)
 
 
 # The do-nothing adapter that times the interface itself: runs make it (latency suite only), the

@@ -81,14 +81,6 @@ def test_work_precision_times_the_grid_and_the_papers_single_point():
         assert r["point_repeats"] >= 2 and r["repeats"] >= 2
 
 
-def test_row_store_survives_a_torn_last_line(tmp_path):
-    store = RowStore(tmp_path)
-    store.add({"suite": "fit", "value": np.float64(1.5)})
-    with open(store.path, "a") as fh:
-        fh.write('{"suite": "acc')  # an interrupted write
-    assert store.rows() == [{"suite": "fit", "value": 1.5}]
-
-
 def test_atomic_write_replaces_whole_files(tmp_path):
     target = tmp_path / "a" / "table.md"
     atomic_write(target, "one")
@@ -364,8 +356,8 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
     from harness.suites import SUITES
 
     specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
-    units = {(case.name, spec.variant): [s.name for s in group]
-             for case, spec, group in plan(specs, [forward], list(SUITES.values()))}
+    units = {(unit.case.name, unit.spec.variant): list(unit.suites)
+             for unit in plan(specs, [forward], list(SUITES.values()))}
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
     assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]

@@ -14,7 +14,11 @@ import pandas as pd
 import pytest
 
 from harness import sweep
+from harness.cases import SMIB_INFERENCE
+from harness.runner import Unit, run_unit_in_worker
+from harness.runs import Settings, SolverSpec
 from harness.store import RowStore
+from harness.timing import pinned_threads
 from solvers import SOLVERS
 from solvers.base import AbstractSolver
 
@@ -70,25 +74,26 @@ def _write(tmp_path: Path, spec: dict) -> Path:
 def test_spec_expands_to_grid_x_seeds_x_cases(fake):
     spec = sweep.parse_spec({"solver": fake, "cases": ["smib-inference", "smib-identification"],
                              "seeds": [0, 1, 2], "grid": {"width": [5, 10]}})
-    tasks = spec.tasks()
-    assert len(tasks) == 2 * 3 * 2
-    assert {(t.case, dict(t.options)["width"], t.seed) for t in tasks} == {
+    units = spec.units()
+    assert len(units) == 2 * 3 * 2
+    assert {(u.case.name, dict(u.spec.options)["width"], u.spec.seed) for u in units} == {
         (c, w, s) for c in ("smib-inference", "smib-identification") for w in (5, 10) for s in (0, 1, 2)}
-    row = tasks[0].base_row()
+    assert all(u.suites == ("accuracy",) for u in units)
+    row = units[0].base(Settings(threads=1))
     assert row["p_width"] == 5 and row["seed"] == 0 and row["threads"] == 1 and row["variant"] == "width=5"
 
 
 def test_spec_defaults_and_classical_seedless():
     spec = sweep.parse_spec(CHEAP)
     assert spec.config == "default" and spec.cases == ("smib-inference",) and spec.seeds == (None,)
-    tasks = spec.tasks()
-    assert [t.variant for t in tasks] == ["atol=1e-08,rtol=0.001", "atol=1e-08,rtol=1e-06"]
-    assert [t.base_row()["seed"] for t in tasks] == [-1, -1]
-    assert [t.point for t in tasks] == [0, 1]
+    units = spec.units()
+    assert [u.spec.variant for u in units] == ["atol=1e-08,rtol=0.001", "atol=1e-08,rtol=1e-06"]
+    assert [u.base(Settings())["seed"] for u in units] == [-1, -1]
+    assert [dict(u.columns)["point"] for u in units] == [0, 1]
 
 
 def test_no_grid_is_one_point():
-    assert len(sweep.parse_spec({"solver": "casadi-cvodes"}).tasks()) == 1
+    assert len(sweep.parse_spec({"solver": "casadi-cvodes"}).units()) == 1
 
 
 @pytest.mark.parametrize(("spec", "message"), [
@@ -107,7 +112,7 @@ def test_no_grid_is_one_point():
     ({"solver": "casadi-cvodes", "grid": {"rtol": [1e-3]}, "options": {"rtol": 1e-4}}, "also fixed in 'options'"),
     ({"solver": "casadi-cvodes", "grid": {"threads": [1, 2]}}, "option 'threads' cannot be set"),
     ({"solver": "casadi-cvodes", "seeds": [0]}, "'seeds': casadi-cvodes takes no seed"),
-    ({"solver": "casadi-cvodes", "grid": {"rtol": [1e-3, -1.0]}}, "'grid' point rtol=-1.0: option rtol must be"),
+    ({"solver": "casadi-cvodes", "grid": {"rtol": [1e-3, -1.0]}}, "'grid' point rtol=-1.0: casadi-cvodes: option rtol must be"),
 ])
 def test_spec_errors_name_the_key(spec, message):
     with pytest.raises(ValueError) as info:
@@ -156,7 +161,8 @@ def test_help_documents_the_format(capsys):
 def test_dry_run_lists_runs(tmp_path, capsys):
     assert _cli(str(_write(tmp_path, CHEAP)), "--dry-run", "--out", str(tmp_path / "out")) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out == ["casadi-cvodes[default,rtol=0.001] smib-inference", "casadi-cvodes[default,rtol=1e-06] smib-inference"]
+    assert out == ["casadi-cvodes[default,atol=1e-08,rtol=0.001] smib-inference",
+                   "casadi-cvodes[default,atol=1e-08,rtol=1e-06] smib-inference"]
     assert not (tmp_path / "out").exists()
 
 
@@ -165,7 +171,7 @@ def test_example_spec_parses():
     raw = json.loads(path.read_text())
     if SOLVERS.get(raw["solver"]) is None:
         pytest.skip(f"{raw['solver']} is not available here")
-    assert len(sweep.load_spec(path).tasks()) == 12
+    assert len(sweep.load_spec(path).units()) == 12
 
 
 # -------------------------------------------------------------------------------------- worker
@@ -174,7 +180,7 @@ def test_pinned_threads_sets_and_restores_environment(monkeypatch):
     monkeypatch.setenv("OMP_NUM_THREADS", "7")
     monkeypatch.setenv("XLA_FLAGS", "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=true")
     monkeypatch.delenv("PJRT_NPROC", raising=False)
-    with sweep.pinned_threads(1):
+    with pinned_threads(1):
         assert os.environ["OMP_NUM_THREADS"] == os.environ["OPENBLAS_NUM_THREADS"] == "1"
         assert os.environ["PJRT_NPROC"] == "1"
         assert os.environ["XLA_FLAGS"].split() == ["--xla_dump_to=/tmp/x", "--xla_cpu_multi_thread_eigen=false"]
@@ -183,13 +189,15 @@ def test_pinned_threads_sets_and_restores_environment(monkeypatch):
     assert os.environ["XLA_FLAGS"] == "--xla_dump_to=/tmp/x --xla_cpu_multi_thread_eigen=true"
 
 
-def test_failing_task_is_a_failed_row():
-    task = sweep.SweepTask("casadi-cvodes", "default", (("rtol", -1.0),), None, "smib-inference",
-                           point=3, swept=("rtol",))
-    (row,) = sweep.run_task(task)
-    assert row["status"].startswith("failed: ValueError: option rtol must be a positive number")
-    assert row["p_rtol"] == -1.0 and row["point"] == 3 and row["case"] == "smib-inference"
-    json.dumps(row)  # plain values
+def test_failing_run_is_a_failed_row():
+    unit = Unit(SMIB_INFERENCE, SolverSpec("casadi-cvodes", "default", (("rtol", -1.0),)), ("accuracy",),
+                (("point", 3), ("p_rtol", -1.0)))
+    parts = run_unit_in_worker(unit, Settings(threads=1, cache_dir=None), ("fit", "accuracy"))
+    assert [work for work, _ in parts] == ["fit", "accuracy"]
+    for _, (row,) in parts:
+        assert row["status"].startswith("failed: ValueError:") and "rtol" in row["status"]
+        assert row["p_rtol"] == -1.0 and row["point"] == 3 and row["case"] == "smib-inference"
+        json.dumps(row)  # plain values
 
 
 # ----------------------------------------------------------------------------------- executors
@@ -199,12 +207,13 @@ def _check_outputs(out: Path, n_runs: int) -> pd.DataFrame:
     assert {r["status"] for r in rows} == {"ok"}
     runs = {(r["case"], r["variant"], r["seed"]) for r in rows}
     assert len(runs) == n_runs
-    ref = [r for r in rows if r["against"] == "reference"]
+    fits = [r for r in rows if r["suite"] == "fit"]
+    assert len(fits) == n_runs and all(r["fit_s"] >= 0 and r["iterations"] == 0 for r in fits)
+    ref = [r for r in rows if r.get("against") == "reference"]
     assert len(ref) == 2 * n_runs and {r["quantity"] for r in ref} == {"delta", "omega"}
     for r in rows:
-        assert r["suite"] == "accuracy" and r["solver"] == "casadi-cvodes" and r["threads"] == 1
-        assert r["fit_s"] >= 0 and r["iterations"] == 0 and math.isfinite(r["rel_l2"])
-        assert r["blas_threads"] in (None, 1)
+        assert r["suite"] in ("fit", "accuracy") and r["solver"] == "casadi-cvodes" and r["threads"] == 1
+        assert r["blas_threads"] == 1 and r["suite"] == "fit" or math.isfinite(r["rel_l2"])
         assert not any("median_s" in key for key in r)  # no latency in a sweep
     # tighter tolerance, smaller error
     err = {r["p_rtol"]: r["rel_l2"] for r in ref if r["quantity"] == "delta"}
@@ -234,15 +243,19 @@ def test_joblib_sweep(tmp_path, capsys):
 
 
 def test_failed_run_does_not_stop_the_sweep(tmp_path):
-    tasks = sweep.parse_spec(CHEAP).tasks()
-    bad = sweep.SweepTask("casadi-cvodes", "default", (("atol", 1e-8), ("rtol", -1.0)), None, "smib-inference",
-                          point=2, swept=("rtol",))
+    from harness import executors
+    from harness.runner import execute
+
+    units = sweep.parse_spec(CHEAP).units()
+    bad = Unit(SMIB_INFERENCE, SolverSpec("casadi-cvodes", "default", (("atol", 1e-8), ("rtol", -1.0))),
+               ("accuracy",), (("point", 2), ("p_rtol", -1.0)))
     store = RowStore(tmp_path)
-    counts = sweep.run_sweep([tasks[0], bad, tasks[1]], store, workers=2, progress=False)
-    assert counts == {"ok": 2, "failed": 1, "executor_failed": 0}
+    counts = execute([units[0], bad, units[1]], Settings(threads=1), store, executors.joblib(2), progress=False)
+    assert counts == {"ok": 4, "failed": 2, "lost": 0}  # units of work: a fit and an accuracy each
     rows = store.rows()
     failed = [r for r in rows if r["status"] != "ok"]
-    assert len(failed) == 1 and failed[0]["p_rtol"] == -1.0 and failed[0]["status"].startswith("failed: ValueError")
+    assert len(failed) == 2 and {r["p_rtol"] for r in failed} == {-1.0}
+    assert all(r["status"].startswith("failed: ValueError") for r in failed)
     table = sweep.summary_table(pd.DataFrame(rows))
     assert list(table["p_rtol"]) == [1e-3, 1e-6, -1.0]
     assert list(table["runs_ok"]) == [1, 1, 0] and list(table["failed"]) == [0, 0, 1]
@@ -275,10 +288,10 @@ def test_summary_statistics_over_seeds():
     for point, width in enumerate((10, 20)):
         for seed in (0, 1, 2):
             base = {"suite": "accuracy", "case": "c", "solver": "s", "config": "default",
-                    "variant": f"width={width}", "seed": seed, "point": point, "p_width": width,
-                    "fit_s": 10.0 * (seed + 1), "status": "ok"}
+                    "variant": f"width={width}", "seed": seed, "point": point, "p_width": width, "status": "ok"}
             err = (seed + 1) * (1e-3 if width == 10 else 1e-4)
-            rows += [{**base, "quantity": "delta", "against": "reference", "rel_l2": err},
+            rows += [{**base, "suite": "fit", "fit_s": 10.0 * (seed + 1)},
+                     {**base, "quantity": "delta", "against": "reference", "rel_l2": err},
                      {**base, "quantity": "omega", "against": "reference", "rel_l2": 2 * err},
                      {**base, "quantity": "delta", "against": "paper ode45 data", "rel_l2": 99.0}]
     rows.append({"suite": "accuracy", "case": "c", "solver": "s", "config": "default", "variant": "width=20",

@@ -1,0 +1,79 @@
+"""Fault injection: a real `swingbench run` in a subprocess, killed (SIGKILL) or interrupted (SIGINT,
+Ctrl-C) at random moments, then `--resume`d: it must end with exactly the rows of an uninterrupted
+run, and a second `--resume` must change nothing."""
+
+from __future__ import annotations
+
+import random
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from harness.store import RowStore
+
+ARGV = ["run", "--quick", "--solver", "scipy-odeint", "--suite", "latency", "--progress", "off"]
+# Columns whose values are measurements (times, repeat counts, where it ran), not what was measured.
+MEASURED = {"repeats", "worker", "point_repeats"}
+
+
+def _swingbench(out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "harness.cli", *ARGV, "--out", str(out), *extra],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _identity(rows: list[dict]) -> list[tuple]:
+    """What each row says was measured: every column but floats and `MEASURED`, numbers in a status
+    ("skipped: estimated 6.4 s per call") masked, in a stable order."""
+    return sorted(tuple(sorted((k, re.sub(r"\d[\d.e+-]*", "#", str(v)) if k == "status" else str(v))
+                               for k, v in row.items() if not isinstance(v, float) and k not in MEASURED))
+                  for row in rows)
+
+
+def _completed(out: Path) -> int:
+    path = out / "rows.jsonl"
+    return path.read_bytes().count(b'"_complete"') if path.exists() else 0
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> list[tuple]:
+    out = tmp_path_factory.mktemp("whole")
+    proc = _swingbench(out)
+    assert proc.wait(timeout=300) == 0, proc.stderr.read()
+    return _identity(RowStore(out).rows())
+
+
+@pytest.mark.parametrize("sig,seed", [(signal.SIGKILL, 0), (signal.SIGKILL, 1), (signal.SIGINT, 2)])
+def test_resume_after_a_kill_ends_with_the_rows_of_an_uninterrupted_run(sig, seed, uninterrupted, tmp_path):
+    rng = random.Random(seed)
+    proc = _swingbench(tmp_path)
+    # a random moment: after a random number of recorded units of work (0: possibly still importing;
+    # Ctrl-C is sent once the run has started, Python's own start-up is not swingbench's to handle)
+    wait_for, deadline = rng.randrange(0 if sig == signal.SIGKILL else 1, 4), time.monotonic() + 120
+    while _completed(tmp_path) < wait_for and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(rng.uniform(0.0, 0.3))
+    finished = proc.poll() is not None
+    proc.send_signal(sig)
+    code = proc.wait(timeout=120)
+    err = proc.stderr.read()
+    if not finished:
+        if sig == signal.SIGKILL:
+            assert code == -signal.SIGKILL
+        else:
+            assert code == 130, err
+            assert err.strip().splitlines()[-1].startswith("[swingbench] interrupted"), err
+
+    resumed = _swingbench(tmp_path, "--resume")
+    assert resumed.wait(timeout=300) == 0, resumed.stderr.read()
+    assert _identity(RowStore(tmp_path).rows()) == uninterrupted
+
+    if seed == 0:  # a second resume of the finished run changes nothing
+        before = (tmp_path / "rows.jsonl").read_bytes()
+        again = _swingbench(tmp_path, "--resume")
+        assert again.wait(timeout=300) == 0, again.stderr.read()
+        assert (tmp_path / "rows.jsonl").read_bytes() == before

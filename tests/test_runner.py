@@ -1,0 +1,209 @@
+"""The runner and its row store: the resume rule (a unit of work is done when its completion is
+recorded), torn and bad lines, idempotent resume, Ctrl-C, and what `run` and `report` do with bad
+folders and files. Fast: a do-nothing adapter and a counting suite stand in for real ones."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import replace
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+import solvers
+from harness.cases import SMIB_INFERENCE
+from harness.cli import main
+from harness.runner import run_suites
+from harness.runs import QUICK, SolverSpec
+from harness.store import RowStore
+from harness.suites import SUITES, Suite
+from solvers.base import AbstractSolver
+
+SETTINGS = replace(QUICK, cache_dir=None)
+KEY = {"suite": "s", "case": "c", "solver": "x", "config": "default", "variant": "", "seed": -1}
+
+
+class Counting(AbstractSolver):
+    """Fits by counting; registered only while a test runs."""
+
+    name = "counting"
+    OPTIONS: ClassVar = {"threads": 1}
+    fits = 0
+
+    def _fit(self):
+        type(self).fits += 1
+
+    def _solve(self, t, P1):
+        return np.zeros((P1.size, t.size)), np.zeros((P1.size, t.size))
+
+    def _identify(self, obs):
+        raise NotImplementedError
+
+
+@pytest.fixture
+def counting(monkeypatch):
+    """The adapter `counting` and two suites, `one` (2 rows) and `two` (1 row), that count their calls."""
+    calls: list[str] = []
+
+    def suite(name: str, n: int):
+        def run(solver, case, settings):
+            calls.append(name)
+            if getattr(run, "interrupt", False):
+                raise KeyboardInterrupt
+            return [{"value": float(i)} for i in range(n)]
+        return run
+
+    monkeypatch.setitem(solvers.SOLVERS, "counting", Counting)
+    monkeypatch.setattr(Counting, "fits", 0)
+    monkeypatch.setitem(SUITES, "one", Suite("one", suite("one", 2)))
+    monkeypatch.setitem(SUITES, "two", Suite("two", suite("two", 1)))
+    return calls
+
+
+def _run(store: RowStore, resume: bool = False, suites=("one", "two")):
+    return run_suites([SolverSpec("counting")], [SMIB_INFERENCE], list(suites), SETTINGS, store,
+                      progress=False, resume=resume)
+
+
+# ------------------------------------------------------------------------------------------- store
+
+def test_a_unit_is_recorded_with_its_rows_and_a_completion_record(tmp_path):
+    store = RowStore(tmp_path)
+    store.record(KEY, [{**KEY, "v": np.float64(1.5)}, {**KEY, "v": (1, 2)}])
+    lines = store.path.read_text().splitlines()
+    assert len(lines) == 3 and json.loads(lines[-1]) == {"_complete": KEY, "rows": 2}
+    contents = store.read()
+    assert [r["v"] for r in contents.rows] == [1.5, [1, 2]]
+    assert contents.completed == {tuple(KEY.values())} and contents.bad_lines == contents.incomplete_rows == 0
+
+
+def test_a_torn_tail_is_set_aside_and_resume_is_idempotent(tmp_path):
+    store = RowStore(tmp_path)
+    store.record(KEY, [{**KEY, "v": 1}])
+    whole = store.path.read_bytes()
+    with open(store.path, "ab") as fh:  # a unit killed mid-write: a row and half of another
+        fh.write(json.dumps({**KEY, "suite": "t", "v": 2}).encode() + b'\n{"suite": "t", "v')
+    contents = store.read()
+    assert contents.rows == [{**KEY, "v": 1}] and contents.incomplete_rows == 1 and contents.bad_lines == 1
+    store.prepare_resume()
+    assert store.path.read_bytes() == whole
+    assert store.set_aside_path.read_text().count("\n") == 2  # nothing lost
+    store.prepare_resume()
+    assert store.path.read_bytes() == whole
+
+
+def test_bad_lines_are_counted_and_skipped(tmp_path):
+    store = RowStore(tmp_path)
+    store.record(KEY, [{**KEY, "v": 1}])
+    with open(store.path, "ab") as fh:
+        fh.write(b"[1, 2]\n\xff\xfe garbage\nnot json\n")
+    store.record({**KEY, "suite": "u"}, [{**KEY, "suite": "u", "v": 2}])
+    contents = store.read()
+    assert [r["v"] for r in contents.rows] == [1, 2] and contents.bad_lines == 3
+    assert "skipped 3 line(s) that are not JSON rows" in contents.warning(store.path)
+
+
+def test_rows_from_before_completion_records_are_read_but_not_resumed(tmp_path):
+    store = RowStore(tmp_path)
+    store.path.write_text(json.dumps({**KEY, "v": 1}) + "\n")
+    assert store.read().legacy and store.rows() == [{**KEY, "v": 1}]
+    with pytest.raises(ValueError, match="older swingbench"):
+        store.prepare_resume()
+
+
+def test_a_reader_does_not_create_the_folder(tmp_path):
+    store = RowStore(tmp_path / "missing", create=False)
+    assert store.rows() == [] and not (tmp_path / "missing").exists()
+
+
+# ------------------------------------------------------------------------------------------ runner
+
+def test_resuming_a_finished_run_changes_nothing(tmp_path, counting):
+    store = RowStore(tmp_path)
+    assert _run(store) == {"ok": 3, "failed": 0, "lost": 0}
+    before = store.path.read_bytes()
+    assert [r["suite"] for r in store.rows()] == ["fit", "one", "one", "two"]
+    assert _run(store, resume=True) == {"ok": 0, "failed": 0, "lost": 0}
+    assert store.path.read_bytes() == before and counting == ["one", "two"] and Counting.fits == 1
+
+
+def test_resume_runs_only_what_is_not_recorded_and_never_repeats_the_fit_row(tmp_path, counting):
+    store = RowStore(tmp_path)
+    _run(store, suites=("one",))
+    _run(store, resume=True)
+    rows = store.rows()
+    assert [r["suite"] for r in rows] == ["fit", "one", "one", "two"]
+    assert counting == ["one", "two"]
+    assert Counting.fits == 2  # the adapter is fitted again to run `two`, its fit row is not written again
+
+
+def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
+    monkeypatch.setattr(Counting, "_fit", lambda self: 1 / 0)
+    store = RowStore(tmp_path)
+    assert _run(store) == {"ok": 0, "failed": 3, "lost": 0}
+    assert {r["status"] for r in store.rows()} == {"failed: ZeroDivisionError: division by zero"}
+    before = store.path.read_bytes()
+    _run(store, resume=True)
+    assert store.path.read_bytes() == before
+
+
+def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
+    SUITES["two"].run.interrupt = True
+    argv = ["run", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress", "off",
+            "--out", str(tmp_path)]
+    assert main(argv) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("[swingbench] interrupted: 2 completed unit(s) of work kept")
+    assert err[0].endswith(" ".join(["swingbench", *argv, "--resume"]))
+    assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one"]
+    SUITES["two"].run.interrupt = False
+    assert main([*argv, "--resume"]) == 0
+    assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one", "two"]
+
+
+# --------------------------------------------------------------------------------------------- CLI
+
+@pytest.mark.parametrize("argv,message", [
+    (["--config", "default", "nope"], "unknown config(s) 'nope'"),
+    (["--solver", "scipy-odeint", "nope"], "unknown solver(s) 'nope'"),
+    (["--suite", "accuracy", "speed"], "unknown suite(s) 'speed'"),
+    (["--case", "smib-inference", "ieee39"], "unknown case(s) 'ieee39'"),
+])
+def test_an_unknown_name_anywhere_in_a_list_is_an_error(argv, message, tmp_path):
+    with pytest.raises(SystemExit, match=message.replace("(", r"\(").replace(")", r"\)")):
+        main(["run", *argv, "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unusable_out_is_one_line(tmp_path, counting):
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    argv = ["run", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+    with pytest.raises(SystemExit, match="is a file, not a folder"):
+        main([*argv, "--out", str(a_file)])
+    if os.geteuid() != 0:  # root writes anywhere
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o500)
+        with pytest.raises(SystemExit, match="cannot write to --out"):
+            main([*argv, "--out", str(locked)])
+
+
+def test_report_skips_bad_lines_with_a_warning_and_survives_bad_metadata(tmp_path, counting, capsys):
+    store = RowStore(tmp_path)
+    _run(store)
+    with open(store.path, "ab") as fh:
+        fh.write(b"\xff\xfe\n42\n")
+    (tmp_path / "metadata.json").write_bytes(b"{truncated")
+    capsys.readouterr()
+    assert main(["report", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "skipped 2 line(s) that are not JSON rows" in err and "metadata.json is unreadable" in err
+    assert (tmp_path / "tables.md").exists()
+
+
+def test_report_on_a_missing_folder_creates_nothing(tmp_path):
+    with pytest.raises(SystemExit, match="is not a folder of results"):
+        main(["report", str(tmp_path / "missing")])
+    assert not (tmp_path / "missing").exists()
