@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
+
+from harness.atomic import atomic_write
 
 __all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "atomic_write", "unit_key"]
 
@@ -28,22 +29,6 @@ _COMPLETE = "_complete"
 def unit_key(row: dict) -> tuple:
     """The unit a row (or a completion record's key) belongs to."""
     return tuple(row.get(column) for column in UNIT_COLUMNS)
-
-
-def atomic_write(path: Path, text: str | bytes) -> None:
-    """Write `text` to `path` through a temporary file and a rename: readers never see half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(text.encode() if isinstance(text, str) else text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
 
 
 class StoreContents(NamedTuple):
