@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 
@@ -23,14 +24,36 @@ __all__ = [
 ]
 
 
+# numpy dtype kinds check_array takes: signed and unsigned integers, floats
+_NUMERIC_KINDS = frozenset("iuf")
+_KIND_NAMES = {"b": "booleans", "U": "strings", "S": "bytes", "c": "complex numbers", "O": "objects",
+               "M": "datetimes", "m": "timedeltas", "V": "raw bytes"}
+
+
 def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -> np.ndarray:
     """Return `value` as a float64 array of `ndim` dimensions or raise a ValueError naming `name`.
 
     Rejects non-numeric input, the wrong number of dimensions, empty arrays, NaN/inf and (with
     `nonnegative`) negative entries: a bad input never becomes a silent wrong number.
+    Numeric means integers and floats (Python, numpy, or an object array of them): strings are
+    refused even when they spell a number ('0.12'), and so are booleans (True is not 1.0 s or
+    1.0 p.u.; the option schemas of `solvers.options` refuse them for numbers too), complex
+    numbers and None. A float64 array costs one dtype check more than `np.asarray`.
     """
+    raw = value
+    if type(raw) is not np.ndarray:
+        try:
+            raw = np.asarray(value)
+        except (TypeError, ValueError) as exc:  # ragged nesting
+            raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    kind = raw.dtype.kind
+    if kind not in _NUMERIC_KINDS:
+        bad = kind != "O" or any(isinstance(x, (bool, np.bool_)) or not isinstance(x, Real) for x in raw.flat)
+        if bad:
+            raise ValueError(f"{name} must be numeric (integers or floats), got {_KIND_NAMES.get(kind, raw.dtype)}"
+                             f" ({_short(value)})")
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        arr = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
     if arr.ndim != ndim:
@@ -42,6 +65,11 @@ def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -
     if nonnegative and (arr < 0).any():
         raise ValueError(f"{name} must be >= 0, got min {arr.min()!r}")
     return arr
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 @dataclass(frozen=True)

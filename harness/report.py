@@ -167,8 +167,24 @@ def _identification_table(frames: dict) -> pd.DataFrame:
                      "m error worst (%)": fmt(100 * g["m_rel_error"].max()),
                      "d error mean (%)": fmt(100 * g["d_rel_error"].mean()),
                      "d error worst (%)": fmt(100 * g["d_rel_error"].max()),
-                     "time median (s)": fmt(g["identify_s"].median())})
+                     "time median (s)": fmt(g["identify_s"].median()), **_uncertainty_columns(g)})
     return pd.DataFrame(rows)
+
+
+def _uncertainty_columns(g: pd.DataFrame) -> dict:
+    """Successes, the median relative 95 % half-width ((high - low) / 2 / estimate) and how often the
+    truth lies in the interval, for m and d; "n/a" for rows of runs made before these columns."""
+    out = {"success": f"{int(g['success'].astype(bool).sum())}/{len(g)}" if "success" in g else "n/a"}
+    for name in ("m", "d"):
+        low, high = f"{name}_ci95_low", f"{name}_ci95_high"
+        if low not in g or high not in g:
+            out[f"{name} 95% half-width median (%)"] = out[f"{name} truth in 95% CI"] = "n/a"
+            continue
+        half = 100 * (g[high] - g[low]) / 2 / g[f"{name}_est"]
+        inside = g[f"{name}_in_ci95"].dropna().astype(bool)
+        out[f"{name} 95% half-width median (%)"] = fmt(half.median())
+        out[f"{name} truth in 95% CI"] = f"{int(inside.sum())}/{inside.size}" if inside.size else "n/a"
+    return out
 
 
 def _matched_table(frames: dict) -> pd.DataFrame:

@@ -10,9 +10,12 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from harness.cases import Case, Observations, check_array
+from solvers.identification import Estimate, assess, data_shortfall
+from solvers.options import OptionSchema, defaults, validate_options
 
 __all__ = [
     "AbstractSolver",
+    "Estimate",
     "FitReport",
     "Identification",
     "NotFittedError",
@@ -79,7 +82,12 @@ class FitReport(NamedTuple):
 
 
 class Identification(NamedTuple):
-    """Estimated inertia m and damping d (p.u.), wall seconds, iterations, success, message."""
+    """Estimated inertia m and damping d (p.u.), wall seconds, iterations, success, message, and
+    their uncertainty: standard errors m_se, d_se (p.u.; delta method, value x the standard error
+    of its log) and 95 % intervals m_ci95, d_ci95 as (low, high) p.u. (exp(log value +- q se_log), q
+    the Student-t quantile; Gauss-Newton, i.e. linearised at the estimate, independent errors of
+    one variance); NaN when unknown. success is False, with the reason in message, when the data or
+    the fit cannot support the estimate (the rules of `solvers.identification`)."""
 
     m: float
     d: float
@@ -87,6 +95,10 @@ class Identification(NamedTuple):
     iterations: int
     success: bool
     message: str
+    m_se: float = float("nan")
+    d_se: float = float("nan")
+    m_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    d_ci95: tuple[float, float] = (float("nan"), float("nan"))
 
 
 _new_trajectory = tuple.__new__
@@ -103,14 +115,19 @@ class NotFittedError(RuntimeError):
 class AbstractSolver(abc.ABC):
     """Base class of every adapter. A new adapter must:
 
-    1. set `name` (the registry key), `OPTIONS` (every option with its default; anything else is
-       rejected) and optionally `CONFIGS` (named option sets; "default" is {}),
+    1. set `name` (the registry key), `SCHEMA` (a `solvers.options.OptionSchema`: every option
+       with its type, range and default, declared once; `OPTIONS`, name -> default, is derived
+       from it, and anything else is rejected) and optionally `CONFIGS` (named option sets;
+       "default" is {}); checks that need the case go in `_check_options`,
     2. implement `_fit()`: the untimed preparation (build integrators, JIT, train), returning a
        `FitReport` or None; `fit()` times it and marks the solver ready,
     3. implement `_solve(t, P1)` on validated arrays (t: 1-D, >= 0 s, any order, repeats allowed;
        P1: 1-D) returning `(delta, omega)`, each (len(P1), len(t)), in the order of t,
-    4. implement `_identify(obs)` returning `(m, d, iterations, success, message)`; `identify()`
-       validates and times it,
+    4. implement `_identify(obs)` returning an `Estimate` (`solvers.identification`): m, d,
+       iterations, success, message and, where it can, the covariance of (log m, log d) with its
+       degrees of freedom and condition number, and the search box; `identify()` validates and
+       times it and applies the shared rules (enough distinct samples, bound, conditioning,
+       interval width) that decide success,
     5. raise `SolveError` naming itself and P1 when an integration fails.
     An adapter that is only valid on the trained domain sets `bounded_domain = True`: `solve` then
     rejects t outside [0, t_final] or P1 outside [p1_min, p1_max] unless `extrapolate=True`.
@@ -129,7 +146,8 @@ class AbstractSolver(abc.ABC):
     """
 
     name: ClassVar[str]
-    OPTIONS: ClassVar[Mapping[str, Any]] = {}
+    SCHEMA: ClassVar[type[OptionSchema] | None] = None
+    OPTIONS: ClassVar[Mapping[str, Any]] = {}  # derived from SCHEMA; set by hand only without one
     CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     bounded_domain: ClassVar[bool] = False
     trains: ClassVar[bool] = False
@@ -147,6 +165,13 @@ class AbstractSolver(abc.ABC):
             return []
         return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.__dict__.get("SCHEMA") is not None:
+            if "OPTIONS" in cls.__dict__:
+                raise TypeError(f"{cls.__name__}: declare options once, in SCHEMA; OPTIONS is derived")
+            cls.OPTIONS = defaults(cls.SCHEMA)
+
     def __init__(self, case: Case, config: str = "default", **options: Any) -> None:
         if not isinstance(case, Case):
             raise ValueError(f"case must be a harness.cases.Case, got {type(case).__name__}")  # noqa: TRY004
@@ -163,14 +188,14 @@ class AbstractSolver(abc.ABC):
         self.case = case
         self.config = config
         self.options: dict[str, Any] = {**self.OPTIONS, **self.CONFIGS[config], **options}
+        if self.SCHEMA is not None:
+            self.options = validate_options(self.SCHEMA, self.options, self.name)
         self._check_options()
         self.fitted = False
 
     def _check_options(self) -> None:
-        """Validate `self.options`; raise ValueError naming the option. Override to add checks."""
-        for key in ("rtol", "atol"):
-            if key in self.options and not (np.isfinite(self.options[key]) and self.options[key] > 0):
-                raise ValueError(f"option {key} must be a positive number, got {self.options[key]!r}")
+        """Checks `SCHEMA` cannot express (they depend on the case or the machine), run on the
+        validated `self.options`; raise ValueError naming the option. None by default."""
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(case={self.case.name!r}, config={self.config!r})"
@@ -264,12 +289,17 @@ class AbstractSolver(abc.ABC):
         """Estimate m and d (p.u.) from scattered observations of the case's system."""
         if not isinstance(obs, Observations):
             raise ValueError(f"obs must be harness.cases.Observations, got {type(obs).__name__}")  # noqa: TRY004
-        if len(obs) < 2:
-            raise ValueError(f"identify needs at least 2 samples (the unknowns m, d), got {len(obs)}")
         start = time.perf_counter()
-        m, d, iterations, success, message = self._identify(obs)
+        # too little data is an outcome (success False), not a programming error; fewer samples than
+        # unknowns leave nothing to fit, more are fitted and the estimate kept, though not trusted
+        if len(obs) < 2:
+            nan = float("nan")
+            return Identification(nan, nan, time.perf_counter() - start, 0, False, data_shortfall(obs))
+        est = Estimate(*self._identify(obs))  # a plain 5-tuple is an estimate without uncertainty
+        verdict = assess(est, data_shortfall(obs))
         return Identification(
-            float(m), float(d), time.perf_counter() - start, int(iterations), bool(success), message
+            float(est.m), float(est.d), time.perf_counter() - start, int(est.iterations), verdict.success,
+            verdict.message, verdict.m_se, verdict.d_se, verdict.m_ci95, verdict.d_ci95,
         )
 
     @abc.abstractmethod
@@ -279,4 +309,4 @@ class AbstractSolver(abc.ABC):
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
     @abc.abstractmethod
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]: ...
+    def _identify(self, obs: Observations) -> Estimate: ...

@@ -3,19 +3,30 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from harness.cases import Observations
 from harness.model import accelerations, smib_system
-from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares, run_batch
+from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.classical import (
+    TOLERANCE_CONFIGS,
+    ObservationLayout,
+    ToleranceOptions,
+    identify_least_squares,
+    run_batch,
+)
+from solvers.options import PositiveInt
 
 try:
     import casadi as ca
 except ImportError:  # pragma: no cover - the registry reports the adapter as not installed
     ca = None
+
+
+class CVODESOptions(ToleranceOptions):
+    threads: PositiveInt = 2
 
 
 class CasadiCVODES(AbstractSolver):
@@ -30,16 +41,8 @@ class CasadiCVODES(AbstractSolver):
     """
 
     name: ClassVar[str] = "casadi-cvodes"
-    OPTIONS: ClassVar[dict[str, Any]] = {
-        **TOLERANCE_CONFIGS["default"], "threads": 2,
-        "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
-    }
+    SCHEMA = CVODESOptions
     CONFIGS = TOLERANCE_CONFIGS
-
-    def _check_options(self) -> None:
-        super()._check_options()
-        if not (isinstance(self.options["threads"], int) and self.options["threads"] >= 1):
-            raise ValueError(f"option threads must be an integer >= 1, got {self.options['threads']!r}")
 
     def _make_caches(self) -> None:
         self._integrators = lru_cache(maxsize=32)(self._build)
@@ -95,7 +98,7 @@ class CasadiCVODES(AbstractSolver):
         G = ca.Function("G", [P1, md], [xf, ca.jacobian(xf, md)])
         return G.map(n_p1, "thread", self.options["threads"])
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         layout = ObservationLayout.of(obs)
         if not hasattr(self, "_identifiers"):
             self._make_caches()
@@ -115,5 +118,5 @@ class CasadiCVODES(AbstractSolver):
 
         return identify_least_squares(
             simulate, obs, layout, self.options["m_bounds"], self.options["d_bounds"],
-            analytic_jacobian=True,
+            analytic_jacobian=True, rtol=self.options["rtol"],
         )

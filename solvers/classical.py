@@ -12,15 +12,28 @@ from scipy.optimize import least_squares
 from harness.cases import Case, Observations
 from harness.model import SwingSystem, smib_system
 from solvers.base import SolveError
+from solvers.identification import Estimate, gauss_newton_covariance
+from solvers.options import Bounds, OptionSchema, PositiveFloat
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "identify_least_squares"]
+__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "ToleranceOptions", "identify_least_squares"]
 
-# rtol 1e-3, atol 1e-6 are MATLAB ode45's defaults, which made the paper's data; "tight" is for
-# identification and for comparing at high accuracy.
+
+class ToleranceOptions(OptionSchema):
+    """The options every tolerance-controlled ODE adapter has: rtol, atol (defaults 1e-3, 1e-6:
+    MATLAB ode45's, which made the paper's data) and m_bounds, d_bounds (p.u.), the search box of
+    `identify`."""
+
+    rtol: PositiveFloat = 1e-3
+    atol: PositiveFloat = 1e-6
+    m_bounds: Bounds = (0.02, 2.0)
+    d_bounds: Bounds = (0.005, 1.0)
+
+
+# "default" is the schema's defaults; "tight" is for identification and for comparing at high accuracy.
 TOLERANCE_CONFIGS = {
-    "default": {"rtol": 1e-3, "atol": 1e-6},
+    "default": {},
     "tight": {"rtol": 1e-10, "atol": 1e-12},
 }
 
@@ -70,8 +83,8 @@ def identify_least_squares(
     simulate: Simulator, obs: Observations, layout: ObservationLayout,
     m_bounds: tuple[float, float], d_bounds: tuple[float, float], analytic_jacobian: bool,
     n_start: int = 6, xtol: float = 1e-12, diff_step: float | None = None,
-    rank_starts: Simulator | None = None,
-) -> tuple[float, float, int, bool, str]:
+    rank_starts: Simulator | None = None, rtol: float = 0.0,
+) -> Estimate:
     """Least squares over theta = (log m, log d) of the misfit in delta (and omega when observed).
 
     The misfit of an oscillation over 20 s has local minima in m (the frequency), so the start is the
@@ -80,7 +93,11 @@ def identify_least_squares(
     `analytic_jacobian` (else finite differences with the relative step `diff_step`, scipy's
     default when None). `rank_starts` (default `simulate`) ranks the start grid: a cheaper,
     looser simulator may do, since only the order of the misfits matters there.
-    Returns (m, d, simulations, success, message).
+    Returns the `Estimate` (iterations: simulations) with the Gauss-Newton covariance of
+    (log m, log d) from least squares' Jacobian at the solution (the analytic one, or the finite
+    differences) and the misfit: s^2 (J^T J)^-1, s^2 = ||r||^2 / (n - 2) pooled over delta and omega,
+    plus the simulator's own error taken as `rtol` (its relative tolerance) x ||observations||
+    (`gauss_newton_covariance`'s model_error).
     """
     with_omega = obs.omega is not None
     target = np.concatenate([obs.delta, obs.omega]) if with_omega else obs.delta
@@ -114,13 +131,15 @@ def identify_least_squares(
         x_scale=1.0, max_nfev=200, diff_step=None if analytic_jacobian else diff_step,
     )
     m, d = np.exp(result.x)
-    return float(m), float(d), n_sim, bool(result.success), str(result.message)
+    cov, dof, condition = gauss_newton_covariance(result.jac, result.fun, rtol * float(np.linalg.norm(target)))
+    return Estimate(float(m), float(d), n_sim, bool(result.success), str(result.message), cov, dof, condition,
+                    (tuple(m_bounds), tuple(d_bounds)))
 
 
 def identify_by_simulation(
     integrate: Callable[[SwingSystem, np.ndarray, np.ndarray], np.ndarray], case: Case,
     obs: Observations, m_bounds: tuple[float, float], d_bounds: tuple[float, float], rtol: float,
-) -> tuple[float, float, int, bool, str]:
+) -> Estimate:
     """`identify_least_squares` around `integrate(system, t, P1)` -> states (2, len(P1), len(t)) at
     sorted unique times: the case's system with trial (m, d), Jacobian by finite differences.
 
@@ -137,4 +156,4 @@ def identify_by_simulation(
         return y[0], y[1], None, None
 
     return identify_least_squares(simulate, obs, layout, m_bounds, d_bounds, analytic_jacobian=False,
-                                  diff_step=float(np.sqrt(max(rtol, np.finfo(float).eps))))
+                                  diff_step=float(np.sqrt(max(rtol, np.finfo(float).eps))), rtol=rtol)

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Sequence
-from numbers import Integral, Real
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import diffrax
 import jax
@@ -15,14 +13,19 @@ import numpy as np
 
 from harness.cases import Observations
 from harness.model import SwingSystem, accelerations, smib_system
-from solvers.base import AbstractSolver, FitReport, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares
+from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
+from solvers.classical import (
+    TOLERANCE_CONFIGS,
+    ObservationLayout,
+    ToleranceOptions,
+    identify_least_squares,
+)
+from solvers.options import PositiveFloat, PositiveInt
 from solvers.pinn.jax_pinn import configure_threads
 
 __all__ = ["DiffraxODE"]
 
 METHODS = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.Dopri8}
-BATCHES = ("stacked", "vmap")
 # Sizes of t and P1 compiled as they are (the latency suite's queries); any other size is padded up
 # to the next of these or of the powers of two, so arbitrary queries compile a few shapes, not one each.
 EXACT_SIZES = (1, 10, 100, 201, 1000, 10000)
@@ -97,8 +100,12 @@ def _compiled(system: SwingSystem, method: str, batch: str, adaptive: bool, max_
     return jax.jit(values), jax.jit(sensitivities)
 
 
-def _positive(value: Any) -> bool:
-    return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+class DiffraxOptions(ToleranceOptions):
+    method: Literal["dopri8", "dopri5", "tsit5"] = "dopri8"  # the keys of METHODS
+    dt: PositiveFloat | None = None  # s; None: adaptive
+    batch: Literal["stacked", "vmap"] = "stacked"
+    max_steps: PositiveInt = 16384
+    threads: PositiveInt = 2
 
 
 class DiffraxODE(AbstractSolver):
@@ -129,36 +136,11 @@ class DiffraxODE(AbstractSolver):
 
     name: ClassVar[str] = "diffrax"
     compiled: ClassVar[bool] = True
-    OPTIONS: ClassVar[dict[str, Any]] = {
-        **TOLERANCE_CONFIGS["default"], "method": "dopri8", "dt": None, "batch": "stacked",
-        "max_steps": 16384, "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0), "threads": 2,
-    }
+    SCHEMA = DiffraxOptions
     CONFIGS = TOLERANCE_CONFIGS
     FIT_SHAPES: ClassVar[tuple[tuple[int, int], ...]] = (
         (201, 100), (201, 1), (201, 10), (201, 1000), (201, 10000), (1, 1),
     )
-
-    def _check_options(self) -> None:
-        o = self.options
-        for key in ("rtol", "atol"):
-            if not _positive(o[key]):
-                raise ValueError(f"option {key} must be a positive finite number, got {o[key]!r}")
-        if o["dt"] is not None and not _positive(o["dt"]):
-            raise ValueError(f"option dt must be None or a positive finite number, got {o['dt']!r}")
-        if o["method"] not in METHODS:
-            raise ValueError(f"option method must be one of {', '.join(METHODS)}, got {o['method']!r}")
-        if o["batch"] not in BATCHES:
-            raise ValueError(f"option batch must be one of {', '.join(BATCHES)}, got {o['batch']!r}")
-        if not (isinstance(o["max_steps"], Integral) and not isinstance(o["max_steps"], bool)
-                and o["max_steps"] >= 1):
-            raise ValueError(f"option max_steps must be a positive int, got {o['max_steps']!r}")
-        if not (isinstance(o["threads"], Integral) and not isinstance(o["threads"], bool) and o["threads"] >= 1):
-            raise ValueError(f"option threads must be an int >= 1, got {o['threads']!r}")
-        for key in ("m_bounds", "d_bounds"):
-            value = o[key]
-            if not (isinstance(value, Sequence) and len(value) == 2 and all(map(_positive, value))
-                    and value[0] < value[1]):
-                raise ValueError(f"option {key} must be two positive increasing numbers, got {value!r}")
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
         """A constant step sweeps dt; an adaptive one the tolerances (the base class's sweep)."""
@@ -218,7 +200,7 @@ class DiffraxODE(AbstractSolver):
             y = self._run(times, P1)[:, :, order]
         return y[0], y[self.system.n]
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         note = configure_threads(self.options["threads"])
         system = smib_system(self.case)
         values, sensitivities = self._functions(system)
@@ -245,7 +227,8 @@ class DiffraxODE(AbstractSolver):
             jac = np.asarray(jac)[:, :n_p, :n_t]
             return y[0], y[system.n], jac[0], jac[system.n]
 
-        m, d, n_sim, success, message = identify_least_squares(
+        est = identify_least_squares(
             simulate, obs, layout, self.options["m_bounds"], self.options["d_bounds"], analytic_jacobian=True,
+            rtol=self.options["rtol"],
         )
-        return m, d, n_sim, success, f"{message} {note}".strip()
+        return est._replace(message=f"{est.message} {note}".strip())

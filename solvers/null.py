@@ -10,7 +10,7 @@ from typing import ClassVar
 import numpy as np
 
 from harness.cases import Observations
-from solvers.base import AbstractSolver
+from solvers.base import AbstractSolver, Estimate
 
 __all__ = ["NullSolver"]
 
@@ -38,5 +38,5 @@ class NullSolver(AbstractSolver):
             zeros = self._zeros[(t.shape[0], 0)] = np.zeros(t.shape[0])
         return zeros, zeros
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         raise NotImplementedError(f"{self.name} measures the interface only; it does not identify")

@@ -3,10 +3,8 @@ inside compiled code; the kernels are in `solvers.numba_kernels`."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from numbers import Integral, Real
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numba
 import numpy as np
@@ -14,8 +12,14 @@ import numpy as np
 from harness.cases import Observations
 from harness.model import SwingSystem, smib_system
 from solvers import numba_kernels as kernels
-from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ObservationLayout, identify_least_squares
+from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.classical import (
+    TOLERANCE_CONFIGS,
+    ObservationLayout,
+    ToleranceOptions,
+    identify_least_squares,
+)
+from solvers.options import PositiveFloat, PositiveInt, StrictBool
 
 _FAILURES = {
     kernels.TOO_MANY_STEPS: "more than max_steps steps",
@@ -33,8 +37,12 @@ def system_array(system: SwingSystem) -> np.ndarray:
     return np.column_stack([np.array(columns, np.float64).T, np.array(system.B, np.float64)])
 
 
-def _is_real(value: Any) -> bool:
-    return isinstance(value, Real) and not isinstance(value, bool) and math.isfinite(value)
+class NumbaRKOptions(ToleranceOptions):
+    method: Literal["dop853", "dopri5", "rk4"] = "dop853"  # the keys of `numba_kernels.METHODS`
+    dt: PositiveFloat = 0.1  # s; <= the case's t_final (checked by the adapter)
+    max_steps: PositiveInt = 100_000
+    parallel: StrictBool = False
+    threads: PositiveInt = 2  # <= numba's NUMBA_NUM_THREADS (checked by the adapter)
 
 
 class NumbaRK(AbstractSolver):
@@ -52,10 +60,7 @@ class NumbaRK(AbstractSolver):
 
     name: ClassVar[str] = "numba-rk"
     compiled: ClassVar[bool] = True
-    OPTIONS: ClassVar[dict[str, Any]] = {
-        **TOLERANCE_CONFIGS["default"], "method": "dop853", "dt": 0.1, "max_steps": 100_000,
-        "parallel": False, "threads": 2, "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
-    }
+    SCHEMA = NumbaRKOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {**TOLERANCE_CONFIGS, "rk4": {"method": "rk4"}}
     # P1 over numba's threads: ~1.9x faster on the grid on an idle machine, 20-50x slower when other
     # processes load the cores (measured, 2 cores); runs measure both, the verdicts take the faster.
@@ -68,29 +73,14 @@ class NumbaRK(AbstractSolver):
         return super().precision_sweep(rtols)
 
     def _check_options(self) -> None:
+        """The rules that depend on the case and the machine (the rest is `NumbaRKOptions`)."""
         options = self.options
-        for key in ("rtol", "atol", "dt"):
-            if not (_is_real(options[key]) and options[key] > 0):
-                raise ValueError(f"option {key} must be a positive finite number, got {options[key]!r}")
         if options["dt"] > self.case.t_final:
-            raise ValueError(f"option dt must be <= t_final = {self.case.t_final} s, got {options['dt']!r}")
-        if options["method"] not in kernels.METHODS:
-            raise ValueError(f"option method must be one of {', '.join(kernels.METHODS)}, "
-                             f"got {options['method']!r}")
-        for key in ("max_steps", "threads"):
-            if not (isinstance(options[key], Integral) and not isinstance(options[key], bool)
-                    and options[key] >= 1):
-                raise ValueError(f"option {key} must be a positive integer, got {options[key]!r}")
+            raise ValueError(f"{self.name}: option dt must be <= t_final = {self.case.t_final} s, "
+                             f"got {options['dt']!r}")
         if options["threads"] > numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
+            raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
                              f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")
-        if not isinstance(options["parallel"], bool):
-            raise ValueError(f"option parallel must be True or False, got {options['parallel']!r}")  # noqa: TRY004
-        for key in ("m_bounds", "d_bounds"):
-            bounds = options[key]
-            if not (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(map(_is_real, bounds))
-                    and 0 < bounds[0] < bounds[1]):
-                raise ValueError(f"option {key} must be two finite numbers 0 < low < high, got {bounds!r}")
 
     def _prepare(self) -> None:
         """Packed system and options, and the compiled kernels (numba compiles, or loads from its
@@ -126,7 +116,7 @@ class NumbaRK(AbstractSolver):
         states = self._run(run, t, P1, self._system, self._options)
         return states[0], states[1]
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         """Least squares with the sensitivity Jacobian. The start grid is ranked by plain
         simulations at rtol, atol no tighter than `COARSE_TOLERANCES`; the refinement integrates
         the sensitivities along at the configured tolerances and keeps them for the Jacobian at the
@@ -159,4 +149,4 @@ class NumbaRK(AbstractSolver):
 
         return identify_least_squares(simulate, obs, layout, self.options["m_bounds"],
                                       self.options["d_bounds"], analytic_jacobian=True,
-                                      rank_starts=rank_starts)
+                                      rank_starts=rank_starts, rtol=self.options["rtol"])

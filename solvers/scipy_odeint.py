@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from scipy.integrate import odeint
 
 from harness.cases import Observations
 from harness.model import SwingSystem, smib_system
-from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, identify_by_simulation, run_batch
+from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation, run_batch
 from solvers.scipy_rk45 import _rhs
 
 
@@ -21,9 +21,7 @@ class ScipyOdeint(AbstractSolver):
     m_bounds, d_bounds (p.u.), the search box of `identify`."""
 
     name: ClassVar[str] = "scipy-odeint"
-    OPTIONS: ClassVar[dict[str, Any]] = {
-        **TOLERANCE_CONFIGS["default"], "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
-    }
+    SCHEMA = ToleranceOptions
     CONFIGS = TOLERANCE_CONFIGS
     # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
     # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,
@@ -55,7 +53,7 @@ class ScipyOdeint(AbstractSolver):
         y = run_batch(lambda p1: self._integrate(self.system, times, p1), P1)
         return y[0][:, order], y[1][:, order]
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         return identify_by_simulation(
             self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"],
             self.options["rtol"],

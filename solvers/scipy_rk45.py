@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from harness.cases import Observations
 from harness.model import SwingSystem, accelerations, smib_system
-from solvers.base import AbstractSolver, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, identify_by_simulation
+from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation
 
 
 def _rhs(t: float, y: np.ndarray, system: SwingSystem, P: np.ndarray) -> np.ndarray:
@@ -19,6 +19,10 @@ def _rhs(t: float, y: np.ndarray, system: SwingSystem, P: np.ndarray) -> np.ndar
     state = y.reshape(2 * n, -1)
     acc = accelerations(system, state[:n], state[n:], P)
     return np.concatenate([state[n:], np.stack(acc)]).ravel()
+
+
+class RK45Options(ToleranceOptions):
+    batch: Literal["loop", "stacked"] = "loop"
 
 
 class ScipyRK45(AbstractSolver):
@@ -32,17 +36,9 @@ class ScipyRK45(AbstractSolver):
 
     name: ClassVar[str] = "scipy-rk45"
     method: ClassVar[str] = "RK45"
-    OPTIONS: ClassVar[dict[str, Any]] = {
-        **TOLERANCE_CONFIGS["default"], "batch": "loop",
-        "m_bounds": (0.02, 2.0), "d_bounds": (0.005, 1.0),
-    }
+    SCHEMA = RK45Options
     CONFIGS = TOLERANCE_CONFIGS
     VARIANTS = ({"batch": "stacked"},)
-
-    def _check_options(self) -> None:
-        super()._check_options()
-        if self.options["batch"] not in ("loop", "stacked"):
-            raise ValueError(f"option batch must be 'loop' or 'stacked', got {self.options['batch']!r}")
 
     def _fit(self) -> None:
         self.system = smib_system(self.case)
@@ -69,7 +65,7 @@ class ScipyRK45(AbstractSolver):
             y = np.concatenate([self._integrate(self.system, times, P1[i:i + 1]) for i in range(P1.size)], axis=1)
         return y[0][:, order], y[1][:, order]
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
         return identify_by_simulation(
             self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"],
             self.options["rtol"],

@@ -57,10 +57,18 @@ def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str]]:
     return runs
 
 
+def _interval(name: str, ci95: tuple[float, float], truth: float) -> dict:
+    low, high = ci95
+    known = bool(np.isfinite([low, high]).all())
+    return {f"{name}_ci95_low": low, f"{name}_ci95_high": high,
+            f"{name}_in_ci95": bool(low <= truth <= high) if known else None}
+
+
 def identification(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """For each (m, d) pair of `settings.pairs` (the rest of `case` fixed), each noise level and
-    each data source (see `_runs`): estimate m and d from `settings.n_u` samples; relative errors
-    and wall time (s)."""
+    each data source (see `_runs`): estimate m and d from `settings.n_u` samples; relative errors,
+    wall time (s), standard errors (p.u.), 95 % intervals (p.u., NaN when the adapter has none) and
+    whether the true value lies in its interval (None when there is no interval)."""
     if solver.config in settings.skip_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
                            "(--full runs it)"}]
@@ -74,5 +82,6 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
             "m_est": est.m, "d_est": est.d, "m_rel_error": metrics.rel_error(est.m, m),
             "d_rel_error": metrics.rel_error(est.d, d), "identify_s": est.seconds,
             "iterations": est.iterations, "success": est.success, "message": est.message,
+            "m_se": est.m_se, "d_se": est.d_se, **_interval("m", est.m_ci95, m), **_interval("d", est.d_ci95, d),
         })
     return rows

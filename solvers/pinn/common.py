@@ -14,16 +14,18 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from harness.cases import Observations
 from harness.model import SwingSystem, smib_system
 from solvers.base import AbstractSolver, FitReport, NotFittedError
+from solvers.identification import Estimate, gauss_newton_covariance
+from solvers.options import PositiveInt, StrictBool
 from solvers.pinn import spec
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
-from solvers.pinn.spec import Architecture, PinnConfig, Problem
+from solvers.pinn.spec import Architecture, PinnConfig, PinnConfigSchema, Problem
 
 __all__ = ["Evaluator", "PinnSolver", "Trainer"]
 
@@ -68,6 +70,14 @@ def _progress_enabled(setting: bool | None) -> bool:
     return sys.stderr.isatty()
 
 
+class PinnOptions(PinnConfigSchema):
+    """Every `PinnConfig` field, and the adapter's own options (see `PinnSolver`)."""
+
+    threads: PositiveInt = 2
+    progress: StrictBool | None = None
+    query: Literal["framework", "numba"] = "framework"
+
+
 class PinnSolver(AbstractSolver):
     """A physics-informed neural network u(t, P1) -> delta for the case's swing equation.
 
@@ -97,22 +107,11 @@ class PinnSolver(AbstractSolver):
     trains: ClassVar[bool] = True
     # the compiled query path of the same trained model (the model cache ignores `query`)
     VARIANTS: ClassVar[tuple[dict[str, Any], ...]] = ({"query": "numba"},)
-    OPTIONS: ClassVar[dict[str, Any]] = {"threads": 2, "progress": None, "query": "framework",
-                                         **PinnConfig().to_json()}
-    QUERIES: ClassVar[tuple[str, ...]] = ("framework", "numba")
+    SCHEMA = PinnOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
 
     def _check_options(self) -> None:
-        super()._check_options()
-        self.pinn_config = PinnConfig.from_options(self.options)
-        threads = self.options["threads"]
-        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-            raise ValueError(f"option threads must be an integer >= 1, got {threads!r}")
-        if self.options["progress"] not in (None, True, False):
-            raise ValueError(f"option progress must be None, True or False, got {self.options['progress']!r}")
-        if self.options["query"] not in self.QUERIES:
-            raise ValueError(f"option query must be one of {', '.join(map(repr, self.QUERIES))}, "
-                             f"got {self.options['query']!r}")
+        self.pinn_config = PinnConfig.from_options(self.options)  # validated already, by PinnOptions
 
     # ---- backend hooks ---------------------------------------------------------------------
 
@@ -131,9 +130,11 @@ class PinnSolver(AbstractSolver):
     # ---- training ----------------------------------------------------------------------------
 
     def _train(self, arch: Architecture, problem: Problem, theta0: np.ndarray, max_iterations: int,
-               deadline: float, what: str) -> OptimResult:
+               deadline: float, what: str, trainer: Trainer | None = None) -> OptimResult:
+        """Minimise `problem`'s loss from `theta0` with the configured optimiser, using `trainer`
+        (compiled here when None)."""
         config = self.pinn_config
-        trainer = self._compile(arch, problem, smib_system(self.case), config.dtype)
+        trainer = trainer or self._compile(arch, problem, smib_system(self.case), config.dtype)
         bar = None
         progress = None
         if _progress_enabled(self.options["progress"]):
@@ -197,7 +198,17 @@ class PinnSolver(AbstractSolver):
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self._evaluate.points(t, P1)
 
-    def _identify(self, obs: Observations) -> tuple[float, float, int, bool, str]:
+    def _identify(self, obs: Observations) -> Estimate:
+        """Train a network with log m, log d as its last two parameters (LM or L-BFGS, as configured).
+
+        Uncertainty: the Gauss-Newton covariance of (log m, log d) conditional on the trained network,
+        held fixed: the swing residual f = m delta_tt + d delta_t + b sin(delta) - P1 (or its omega
+        form) at the collocation points is linear in m and d, so its Jacobian columns m delta_tt and
+        d delta_t are exactly r(2 m) - r(m) and r(2 d) - r(d) (two residual evaluations, no (N, P)
+        Jacobian, the same for both optimisers); the data residuals do not depend on m, d. The
+        residual variance is that of the swing residuals, s^2 = ||f||^2 / (n_f - 2). It ignores the
+        network's own uncertainty (its weights trade off against m, d; the full Jacobian over all
+        weights is rank-deficient), so it is a lower bound on the spread, not a calibrated interval."""
         config = self.pinn_config
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
@@ -205,11 +216,28 @@ class PinnSolver(AbstractSolver):
                                p_range=spec.identification_p_range(self.case, obs))
         problem = spec.identification_problem(config, self.case, obs)
         theta0 = spec.init_theta(arch, config.seed, config.m_init, config.d_init)
-        result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify")
+        trainer = self._compile(arch, problem, smib_system(self.case), config.dtype)
+        result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify", trainer)
         m, d = np.exp(result.theta[-2:])
         self.identification = {"m": float(m), "d": float(d), "arch": arch, "theta": result.theta}
         success = result.success and bool(np.isfinite([m, d]).all())
-        return float(m), float(d), result.iterations, success, result.message + (f"; {note}" if note else "")
+        message = result.message + (f"; {note}" if note else "")
+        if not success:
+            return Estimate(float(m), float(d), result.iterations, False, message)
+        residuals = trainer.residuals
+        n_data = problem.targets.size
+
+        def swing(theta: np.ndarray) -> np.ndarray:  # the m, d-dependent swing residuals, weighted
+            return residuals(theta)[n_data:].reshape(problem.t_f.size, -1)[:, -1]
+
+        f = swing(result.theta)
+        columns = []
+        for k in (-2, -1):  # log m, log d: the residual is linear in exp of each
+            doubled = result.theta.copy()
+            doubled[k] += np.log(2.0)
+            columns.append(swing(doubled) - f)
+        cov, dof, condition = gauss_newton_covariance(np.stack(columns, axis=1), f)
+        return Estimate(float(m), float(d), result.iterations, True, message, cov, dof, condition)
 
     # ---- persistence -------------------------------------------------------------------------
 

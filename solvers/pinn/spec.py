@@ -1,6 +1,7 @@
 """The one specification of the swingbench PINNs, shared by the torch and JAX backends.
 
-Plain numpy and frozen dataclasses only: the configuration (`PinnConfig`, `CONFIGS`), the network
+Plain numpy and frozen dataclasses only (the configuration's fields are typed with the option
+types of `solvers.options`, which validate them): the configuration (`PinnConfig`, `CONFIGS`), the network
 layout and its flat parameter vector (`Architecture`), the seeded initial weights (`init_theta`),
 the seeded training points (`forward_problem`, `identification_problem`), the loss weights and
 the save/load format (`save_model`, `load_model`). The network and loss as functions of the
@@ -12,32 +13,48 @@ Units: t in s, P1 in p.u., delta in rad, omega in rad/s, m in p.u. s^2/rad, d in
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import model_validator
 from scipy.stats import qmc
 
+from harness.atomic import write_atomically
 from harness.cases import Case, Observations, standard_grid
+from solvers.options import (
+    NonNegativeInt,
+    PositiveFloat,
+    PositiveInt,
+    StrictBool,
+    StrictChoice,
+    dataclass_schema,
+    validate_options,
+)
 
 __all__ = [
     "CONFIGS",
     "CONFIG_FIELDS",
     "FORMAT_VERSION",
     "Architecture",
+    "CorruptModelError",
     "PinnConfig",
+    "PinnConfigSchema",
     "Problem",
     "forward_problem",
     "identification_problem",
     "init_theta",
     "load_model",
     "save_model",
+    "weights_sha256",
 ]
 
-FORMAT_VERSION = 1
+# 2: the .json records the weights' sha256 (version 1 files, without it, still load)
+FORMAT_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -67,51 +84,33 @@ class PinnConfig:
     budgets `id_max_iterations` and optionally `id_max_seconds`. `seed` draws weights and points.
     """
 
-    hidden_layers: int = 2
-    width: int = 16
-    outputs: int = 1
-    hard_ic: bool = True
-    dtype: str = "float64"
-    n_u: int = 40
-    n_f: int = 2000
-    optimizer: str = "lm"
-    loss_scale: float = 1.0
-    lbfgs_history: int = 50
-    max_iterations: int = 2000
-    max_seconds: float | None = None
-    seed: int = 0
-    id_hidden_layers: int = 2
-    id_width: int = 16
-    id_n_f: int = 2000
-    id_max_iterations: int = 1000
-    id_max_seconds: float | None = None
-    m_init: float = 0.2
-    d_init: float = 0.1
+    hidden_layers: PositiveInt = 2
+    width: PositiveInt = 16
+    outputs: Annotated[Literal[1, 2], StrictChoice] = 1
+    hard_ic: StrictBool = True
+    dtype: Literal["float32", "float64"] = "float64"
+    n_u: NonNegativeInt = 40
+    n_f: NonNegativeInt = 2000
+    optimizer: Literal["lm", "lbfgs"] = "lm"
+    loss_scale: PositiveFloat = 1.0
+    lbfgs_history: PositiveInt = 50
+    max_iterations: PositiveInt = 2000
+    max_seconds: PositiveFloat | None = None
+    seed: NonNegativeInt = 0
+    id_hidden_layers: PositiveInt = 2
+    id_width: PositiveInt = 16
+    id_n_f: NonNegativeInt = 2000
+    id_max_iterations: PositiveInt = 1000
+    id_max_seconds: PositiveFloat | None = None
+    m_init: PositiveFloat = 0.2
+    d_init: PositiveFloat = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("hidden_layers", "width", "id_hidden_layers", "id_width", "lbfgs_history",
-                     "max_iterations", "id_max_iterations"):
-            _check_int(name, getattr(self, name), 1)
-        for name in ("n_u", "n_f", "id_n_f", "seed"):
-            _check_int(name, getattr(self, name), 0)
-        for name in ("max_seconds", "id_max_seconds", "loss_scale", "m_init", "d_init"):
-            value = getattr(self, name)
-            if value is None and name in ("max_seconds", "id_max_seconds"):
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) \
-                    or value <= 0:
-                raise ValueError(f"option {name} must be a positive number, got {value!r}")
-        if self.n_u + self.n_f == 0:
-            raise ValueError("options n_u and n_f are both 0: fit would have no training points")
-        if self.outputs not in (1, 2):
-            raise ValueError(f"option outputs must be 1 or 2, got {self.outputs!r}")
-        if not isinstance(self.hard_ic, bool):
-            # ValueError, not TypeError: the solver contract reports every bad option as ValueError
-            raise ValueError(f"option hard_ic must be True or False, got {self.hard_ic!r}")  # noqa: TRY004
-        if self.dtype not in ("float32", "float64"):
-            raise ValueError(f"option dtype must be 'float32' or 'float64', got {self.dtype!r}")
-        if self.optimizer not in ("lm", "lbfgs"):
-            raise ValueError(f"option optimizer must be 'lm' or 'lbfgs', got {self.optimizer!r}")
+        # the field types above, checked by `PinnConfigSchema`; the values it returns (an int
+        # given for a float field becomes a float) replace the ones given
+        checked = validate_options(PinnConfigSchema, dataclasses.asdict(self), type(self).__name__)
+        for name, value in checked.items():
+            object.__setattr__(self, name, value)
 
     def deadline(self, start: float, identification: bool = False) -> float:
         """The `time.perf_counter()` value training must not pass: `start` + `max_seconds` (or
@@ -128,9 +127,15 @@ class PinnConfig:
         return dataclasses.asdict(self)
 
 
-def _check_int(name: str, value: Any, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"option {name} must be an integer >= {minimum}, got {value!r}")
+class PinnConfigSchema(dataclass_schema(PinnConfig)):
+    """`PinnConfig`'s fields as an option schema (the PINN adapters' options extend it), with the
+    one rule between fields."""
+
+    @model_validator(mode="after")
+    def _has_training_points(self) -> PinnConfigSchema:
+        if self.n_u + self.n_f == 0:
+            raise ValueError("options n_u and n_f are both 0: fit would have no training points")
+        return self
 
 
 CONFIG_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(PinnConfig))
@@ -350,6 +355,7 @@ def identification_problem(config: PinnConfig, case: Case, obs: Observations) ->
 
 # ---------------------------------------------------------------------------------------------
 # Save / load: <path>.npz holds the flat parameter vector(s) (float64), <path>.json the rest.
+# A model may come from a cache another process writes or a file a user copied: load checks it all.
 
 
 def _paths(path) -> tuple[Path, Path]:
@@ -359,12 +365,28 @@ def _paths(path) -> tuple[Path, Path]:
     return path.with_name(path.name + ".npz"), path.with_name(path.name + ".json")
 
 
+class CorruptModelError(ValueError):
+    """A saved model that cannot be used as it is: unreadable, incomplete, of another format
+    version, inconsistent with itself or with non-finite weights. The message starts with the file."""
+
+
+def weights_sha256(arrays: Mapping[str, np.ndarray]) -> str:
+    """sha256 of named weight arrays: each name, dtype, shape and C-order bytes, in name order."""
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        array = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}:{array.dtype.str}:{array.shape};".encode())
+        digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
 def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Architecture,
                theta: np.ndarray, identification: dict | None = None) -> tuple[Path, Path]:
     """Write the weights to `<path>.npz` (key "theta", the flat float64 vector in
-    `Architecture.shapes` order) and config, case, architecture, the saving backend and the last
-    identification (m, d, its architecture and parameters in the .npz as "id_theta") to
-    `<path>.json`. Returns the two paths."""
+    `Architecture.shapes` order) and config, case, architecture, the saving backend, the last
+    identification (m, d, its architecture and parameters in the .npz as "id_theta") and the
+    `weights_sha256` of the .npz arrays to `<path>.json`, each file atomically. Returns the two
+    paths."""
     npz, meta = _paths(path)
     arrays = {"theta": np.asarray(theta, np.float64)}
     info = None
@@ -372,12 +394,13 @@ def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Archi
         arrays["id_theta"] = np.asarray(identification["theta"], np.float64)
         info = {"m": float(identification["m"]), "d": float(identification["d"]),
                 "architecture": identification["arch"].to_json()}
-    np.savez(npz, **arrays)
-    meta.write_text(json.dumps({
+    text = json.dumps({
         "format": "swingbench-pinn", "version": FORMAT_VERSION, "saved_by": solver,
         "config": config.to_json(), "case": dataclasses.asdict(case), "architecture": arch.to_json(),
-        "identification": info,
-    }, indent=2))
+        "identification": info, "weights_sha256": weights_sha256(arrays),
+    }, indent=2)
+    write_atomically(npz, lambda fh: np.savez(fh, **arrays))
+    write_atomically(meta, lambda fh: fh.write(text.encode()))
     return npz, meta
 
 
@@ -385,23 +408,78 @@ def _arch_from_json(data: dict) -> Architecture:
     return Architecture(**{**data, "sizes": tuple(data["sizes"])})
 
 
+def _read_info(meta: Path) -> dict:
+    if not meta.is_file():
+        raise FileNotFoundError(f"{meta}: no such model file")
+    try:
+        info = json.loads(meta.read_bytes().decode())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CorruptModelError(f"{meta}: not valid JSON (truncated or overwritten?): {exc}") from exc
+    if not isinstance(info, dict) or info.get("format") != "swingbench-pinn":
+        raise CorruptModelError(f"{meta}: not a swingbench PINN model")
+    if info.get("version") not in (1, FORMAT_VERSION):
+        raise CorruptModelError(f"{meta}: format version {info.get('version')!r}, this code reads 1 to "
+                                f"{FORMAT_VERSION}")
+    if info["version"] >= 2 and not isinstance(info.get("weights_sha256"), str):
+        raise CorruptModelError(f"{meta}: no weights_sha256 (format version {info['version']} records one)")
+    return info
+
+
+def _read_arrays(npz: Path) -> dict[str, np.ndarray]:
+    if not npz.is_file():
+        raise FileNotFoundError(f"{npz}: no such model file")
+    try:
+        data = np.load(npz)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise CorruptModelError(f"{npz}: not an .npz archive")
+        with data:
+            return {name: data[name].copy() for name in data.files}
+    except CorruptModelError:
+        raise
+    except Exception as exc:  # zipfile, zlib and numpy each raise their own on a damaged file
+        raise CorruptModelError(f"{npz}: unreadable (truncated or overwritten?): "
+                                f"{type(exc).__name__}: {exc}") from exc
+
+
+def _check_weights(npz: Path, name: str, array: np.ndarray | None, arch: Architecture) -> np.ndarray:
+    if array is None:
+        raise CorruptModelError(f"{npz}: no array {name!r}")
+    if array.dtype != np.float64 or array.shape != (arch.n_params,):
+        raise CorruptModelError(f"{npz}: {name!r} is {array.dtype} of shape {array.shape}, the "
+                                f"architecture needs float64 of shape ({arch.n_params},)")
+    return array
+
+
 def load_model(path) -> dict:
     """Read what `save_model` wrote: a dict with config (PinnConfig), case (Case), arch
-    (Architecture), theta (float64), identification (None or dict m, d, arch, theta), saved_by."""
+    (Architecture), theta (float64), identification (None or dict m, d, arch, theta), saved_by.
+    Raises FileNotFoundError for a missing file and `CorruptModelError` for one that is unreadable,
+    of another format version, incomplete, of the wrong shapes, not the weights its .json records
+    (`weights_sha256`, format version 2) or non-finite; each message starts with the file."""
     npz, meta = _paths(path)
-    info = json.loads(meta.read_text())
-    if info.get("format") != "swingbench-pinn" or info.get("version") != FORMAT_VERSION:
-        raise ValueError(f"{meta} is not a swingbench PINN model (format version {FORMAT_VERSION})")
-    with np.load(npz) as arrays:
-        theta = arrays["theta"].copy()
-        id_theta = arrays["id_theta"].copy() if "id_theta" in arrays else None
-    arch = _arch_from_json(info["architecture"])
-    if theta.shape != (arch.n_params,):
-        raise ValueError(f"{npz}: {theta.size} parameters, the architecture needs {arch.n_params}")
+    info = _read_info(meta)
+    arrays = _read_arrays(npz)
+    try:
+        arch = _arch_from_json(info["architecture"])
+        config, case = PinnConfig(**info["config"]), Case(**info["case"])
+        ident = info.get("identification")
+        id_arch = None if ident is None else _arch_from_json(ident["architecture"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CorruptModelError(f"{meta}: missing or bad field: {type(exc).__name__}: {exc}") from exc
+    theta = _check_weights(npz, "theta", arrays.get("theta"), arch)
     identification = None
-    if info.get("identification") is not None:
-        ident = info["identification"]
-        identification = {"m": ident["m"], "d": ident["d"], "arch": _arch_from_json(ident["architecture"]),
-                          "theta": id_theta}
-    return {"config": PinnConfig(**info["config"]), "case": Case(**info["case"]), "arch": arch,
-            "theta": theta, "identification": identification, "saved_by": info.get("saved_by")}
+    if ident is not None:
+        m, d = ident.get("m"), ident.get("d")
+        if not all(isinstance(v, (int, float)) and np.isfinite(v) for v in (m, d)):
+            raise CorruptModelError(f"{meta}: identification m = {m!r}, d = {d!r}, not finite numbers")
+        identification = {"m": m, "d": d, "arch": id_arch,
+                          "theta": _check_weights(npz, "id_theta", arrays.get("id_theta"), id_arch)}
+    if "weights_sha256" in info and weights_sha256(arrays) != info["weights_sha256"]:
+        raise CorruptModelError(f"{npz}: the weights' sha256 is not the one {meta.name} records "
+                                "(another model's file, or a damaged one)")
+    for name, array in [("theta", theta), *([("id_theta", identification["theta"])] if identification else [])]:
+        if not np.isfinite(array).all():
+            raise CorruptModelError(f"{npz}: {name!r} has {int(array.size - np.isfinite(array).sum())} "
+                                    "non-finite weights")
+    return {"config": config, "case": case, "arch": arch, "theta": theta,
+            "identification": identification, "saved_by": info.get("saved_by")}

@@ -1,0 +1,139 @@
+"""Identification that says when it does not know: the rules of `solvers.identification` and the
+uncertainty every adapter reports, on data that cannot support an estimate and on data that can."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.cases import SMIB_IDENTIFICATION, Observations
+from harness.suites.identification import observations
+from solvers import make_solver
+from solvers.identification import MAX_CONDITION, Estimate, assess, gauss_newton_covariance
+
+CASE = SMIB_IDENTIFICATION
+# casadi-cvodes at "tight" takes 15-30 s an identification of 100 samples on a busy 2-core machine:
+# it only meets one repeated sample here
+FAST = ("numba-rk", "scipy-odeint")
+_FITTED: dict = {}
+
+
+def _solver(name: str):
+    pytest.importorskip({"numba-rk": "numba", "casadi-cvodes": "casadi"}.get(name, "scipy"))
+    if name not in _FITTED:
+        _FITTED[name] = make_solver(name, CASE, "tight")
+        _FITTED[name].fit()
+    return _FITTED[name]
+
+
+@pytest.fixture(scope="module")
+def good():
+    return observations(CASE, 100)
+
+
+def _noisy(obs: Observations, noise: float, seed: int) -> Observations:
+    """The same points, delta times (1 + noise N(0, 1)): the suite's relative noise."""
+    rng = np.random.default_rng(seed)
+    return Observations(obs.t, obs.P1, obs.delta * (1.0 + noise * rng.standard_normal(len(obs))))
+
+
+def _inside(ci: tuple[float, float], value: float) -> bool:
+    return ci[0] <= value <= ci[1]
+
+
+# ---- data that cannot support an estimate --------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", [*FAST, "casadi-cvodes"])
+def test_repeated_sample_fails(name, good):
+    obs = Observations(np.full(20, good.t[0]), np.full(20, good.P1[0]), np.full(20, good.delta[0]))
+    est = _solver(name).identify(obs)
+    assert not est.success and "distinct samples" in est.message
+
+
+def test_three_samples_fail(good):
+    """The rule: at least 5 distinct (t, P1) samples (3 residual degrees of freedom)."""
+    est = _solver("numba-rk").identify(Observations(good.t[:3], good.P1[:3], good.delta[:3]))
+    assert not est.success and "distinct samples" in est.message
+
+
+def test_pure_noise_fails(good):
+    rng = np.random.default_rng(0)
+    est = _solver("numba-rk").identify(Observations(good.t, good.P1, rng.normal(0.7, 0.3, len(good))))
+    assert not est.success
+    assert any(word in est.message for word in ("bound", "ill-conditioned", "wider than the estimate"))
+
+
+def test_data_from_outside_the_box_fails_on_its_bound():
+    est = _solver("numba-rk").identify(observations(CASE.with_params(5.0, 0.15), 100))
+    assert not est.success and "upper bound" in est.message and est.m == pytest.approx(2.0)
+
+
+# ---- data that can -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", FAST)
+def test_good_data_interval_contains_the_truth_and_widens_with_noise(name, good):
+    solver = _solver(name)
+    clean = solver.identify(good)
+    noisy = solver.identify(_noisy(good, 0.01, seed=1))
+    for est in (clean, noisy):
+        assert est.success, est.message
+        assert _inside(est.m_ci95, CASE.m) and _inside(est.d_ci95, CASE.d)
+        assert np.isfinite([est.m_se, est.d_se]).all() and est.m_se > 0 and est.d_se > 0
+    width = lambda ci: ci[1] - ci[0]
+    assert width(noisy.m_ci95) > width(clean.m_ci95) and width(noisy.d_ci95) > width(clean.d_ci95)
+
+
+def test_standard_errors_match_a_monte_carlo_spread(good):
+    solver = _solver("numba-rk")
+    runs = [solver.identify(_noisy(good, 0.01, seed)) for seed in range(8)]
+    spread = np.std([[r.m, r.d] for r in runs], axis=0, ddof=1)
+    se = np.mean([[r.m_se, r.d_se] for r in runs], axis=0)
+    assert np.all(se / spread < 2.0) and np.all(spread / se < 2.0), (se, spread)
+
+
+# ---- the rules, on their own ----------------------------------------------------------------------------
+
+
+def test_gauss_newton_covariance_is_the_linear_regression_one():
+    rng = np.random.default_rng(0)
+    x = np.linspace(0.0, 1.0, 30)
+    y = 2.0 * x + 1.0 + 0.1 * rng.standard_normal(30)
+    coef, expected = np.polyfit(x, y, 1, cov=True)
+    J = np.stack([x, np.ones_like(x)], axis=1)
+    cov, dof, condition = gauss_newton_covariance(J, J @ coef - y)
+    np.testing.assert_allclose(cov, expected, rtol=1e-10)
+    assert dof == 28 and condition == pytest.approx(np.linalg.cond(J.T @ J))
+
+
+def test_assess_rules():
+    cov = np.diag([1e-4, 1e-4])
+    fine = Estimate(0.25, 0.15, 5, True, "ok", cov, 98, 3.0, ((0.02, 2.0), (0.005, 1.0)))
+    verdict = assess(fine)
+    assert verdict.success and verdict.message == "ok"
+    assert verdict.m_se == pytest.approx(0.25 * 1e-2)
+    low, high = verdict.m_ci95
+    assert low < 0.25 < high and np.log(high / 0.25) == pytest.approx(np.log(0.25 / low))  # log-symmetric
+    assert not assess(fine._replace(m=2.0 * (1 - 1e-5))).success
+    ill = assess(fine._replace(condition=10 * MAX_CONDITION))
+    assert not ill.success and "ill-conditioned" in ill.message
+    wide = assess(fine._replace(cov_log=np.diag([1.0, 1e-4])))
+    assert not wide.success and "wider than the estimate" in wide.message
+    assert not assess(fine._replace(d=float("nan"))).success
+    assert assess(Estimate(0.25, 0.15, 5, True, "no uncertainty")).success  # NaN fields, no rule applies
+
+
+# ---- PINNs -------------------------------------------------------------------------------------------------
+
+PINN_SMALL = {"threads": 1, "id_hidden_layers": 2, "id_width": 8, "id_n_f": 100, "id_max_iterations": 5}
+
+
+def test_pinn_reports_finite_uncertainty_and_refuses_one_repeated_sample(good):
+    pytest.importorskip("torch")
+    solver = make_solver("torch-pinn", CASE, **PINN_SMALL)
+    est = solver.identify(Observations(good.t[:30], good.P1[:30], good.delta[:30]))
+    assert np.isfinite([est.m, est.d, est.m_se, est.d_se, *est.m_ci95, *est.d_ci95]).all()
+    assert est.m_ci95[0] < est.m < est.m_ci95[1] and est.d_ci95[0] < est.d < est.d_ci95[1]
+    repeated = solver.identify(Observations(np.full(20, 3.0), np.full(20, 0.14), np.full(20, 0.8)))
+    assert not repeated.success and "distinct samples" in repeated.message
