@@ -57,6 +57,7 @@ def _scattered(case, n=100, seed=0):
     return Observations(t, p1, delta)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", CLASSICAL)
 def test_identify_recovers_m_and_d_from_tight_data(name):
     case = SMIB_IDENTIFICATION.with_params(0.18, 0.09)
@@ -82,7 +83,8 @@ def test_identify_at_ode45_tolerances(name):
     assert metrics.rel_error(est.d, d) < 5e-3
 
 
-@pytest.mark.parametrize("name", CLASSICAL)
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["scipy-rk45", "scipy-odeint"])  # casadi: recovers tight data above, ~8 s here
 def test_identify_on_the_papers_identification_data(name):
     t, P1, delta = load_seed_reference(SEED_DIR / "swingEquation_identification.mat")
     rng = np.random.default_rng(1)
@@ -95,13 +97,18 @@ def test_identify_on_the_papers_identification_data(name):
 
 @pytest.mark.parametrize("name", CLASSICAL)
 def test_identify_uses_omega_when_observed(name):
+    """One state (t = 1 s, P1 = 0.14) observed twice: delta alone is one equation for two unknowns
+    (the fit ends somewhere on a curve of (m, d)); delta and omega together pin (m, d) down."""
     case = SMIB_IDENTIFICATION
-    t = np.linspace(0.5, 15.0, 30)
-    P1 = np.full(30, 0.14)
-    ref_delta, ref_omega = reference(case, t, [0.14])
-    est = make_solver(name, case, "tight").identify(Observations(t, P1, ref_delta[0], ref_omega[0]))
-    assert metrics.rel_error(est.m, case.m) < 1e-4
-    assert metrics.rel_error(est.d, case.d) < 1e-4
+    t, P1 = np.array([1.0, 1.0]), np.array([0.14, 0.14])
+    ref_delta, ref_omega = reference(case, t[:1], P1[:1])
+    delta, omega = np.repeat(ref_delta[0], 2), np.repeat(ref_omega[0], 2)
+    solver = make_solver(name, case, "tight")
+    est = solver.identify(Observations(t, P1, delta, omega))
+    assert metrics.rel_error(est.m, case.m) < 1e-6
+    assert metrics.rel_error(est.d, case.d) < 1e-6
+    without = solver.identify(Observations(t, P1, delta))  # the premise: delta alone does not do it
+    assert max(metrics.rel_error(without.m, case.m), metrics.rel_error(without.d, case.d)) > 1e-2
 
 
 @pytest.mark.parametrize("name", CLASSICAL)

@@ -53,7 +53,7 @@ def _close(a, b):
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("backend", ["jax-pinn", "torch-pinn"])
+@pytest.mark.parametrize("backend", [pytest.param("jax-pinn", marks=pytest.mark.slow), "torch-pinn"])  # JAX: JIT
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_numba_equals_the_frameworks(numba_evaluators, backend, variant):
     """delta and omega on the 100 x 201 grid and on single points equal the backend's float64
@@ -101,6 +101,7 @@ def test_omega_is_the_time_derivative_of_delta(numba_evaluators, variant):
     np.testing.assert_allclose(omega, fd, rtol=0, atol=1e-6 * max(1.0, np.abs(omega).max()))
 
 
+@pytest.mark.slow
 def test_a_torch_saved_model_loads_without_the_framework(tmp_path):
     """A model fitted and saved by torch-pinn answers the same through `compiled_model`."""
     pytest.importorskip("torch")
@@ -115,6 +116,7 @@ def test_a_torch_saved_model_loads_without_the_framework(tmp_path):
         _close(omega, traj.omega)
 
 
+@pytest.mark.slow
 def test_query_numba_through_the_adapter_equals_the_framework(tmp_path):
     """query="numba" trains the same model and answers the same queries as query="framework",
     after fit and after load (either backend's file)."""
@@ -151,7 +153,7 @@ def test_identification_networks_are_refused():
         NumbaEvaluator(_network(*VARIANTS[0])[0]).load(np.zeros(3))
 
 
-@pytest.mark.parametrize("name", ["jax-pinn", "torch-pinn"])
+@pytest.mark.parametrize("name", [pytest.param("jax-pinn", marks=pytest.mark.slow), "torch-pinn"])  # JAX: JIT
 @pytest.mark.parametrize("query", ["framework", "numba"])
 def test_solve_points_equals_one_point_queries(name, query):
     """A batch of scattered single points gives what one-point grid queries give, on every path."""

@@ -60,7 +60,7 @@ def levenberg_marquardt(
     r = residuals(theta)
     loss = float(r @ r)
     if not np.isfinite(loss):
-        return OptimResult(theta, loss, 0, "non-finite initial loss", False)
+        return OptimResult(theta, loss, 0, "Levenberg-Marquardt: non-finite initial loss", False)
     cost = {True: 0.0, False: 0.0}  # seconds of the last iteration with / without a Jacobian
     need_jacobian = True
     nu, mu = 2.0, mu0
@@ -135,10 +135,10 @@ def lbfgs(
             state["theta"], state["loss"] = theta.copy(), loss
         return loss, grad
 
-    def callback(intermediate) -> None:
+    def callback(intermediate_result) -> None:  # scipy passes the OptimizeResult by this name only
         state["iterations"] += 1
         if progress is not None:
-            progress(state["iterations"], float(intermediate.fun))
+            progress(state["iterations"], float(intermediate_result.fun))
         if time.perf_counter() > deadline:
             raise StopIteration
 
