@@ -102,7 +102,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise SystemExit("swingbench run: no solver/config combination selected")
-    store, _ = open_results(args.out, args.resume, "run")
+    store, _ = open_results(args.out, args.resume, "run", same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
     classes = {spec.solver: solver_class(spec.solver) for spec in specs}
     blas = {name: cls.blas_threads for name, cls in classes.items() if cls is not None and cls.blas_threads}

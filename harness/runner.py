@@ -9,6 +9,7 @@ in one write (`RowStore.record`). Failures and missing dependencies are rows; th
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shlex
@@ -224,11 +225,16 @@ def run_suites(
     return execute(units, settings, store, progress=progress, done=done)
 
 
-def open_results(out: Path, resume: bool, command: str) -> tuple[RowStore, StoreContents | None]:
+def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | None = None,
+                 ) -> tuple[RowStore, StoreContents | None]:
     """The RowStore of the output folder `out`, checked before any work: a usable folder (made if
-    missing), writable. Without `resume` earlier rows are removed; with it, an interrupted unit is set
-    aside (`RowStore.prepare_resume`). Problems exit with one line (SystemExit)."""
+    missing), writable. Without `resume` earlier rows are removed; with it, the run being continued
+    must have recorded the values `same` in `out/metadata.json` (rows of other settings would mix),
+    and an interrupted unit is set aside (`RowStore.prepare_resume`). Problems exit with one line
+    (SystemExit)."""
     out = Path(out)
+    if resume and same:
+        _check_same_run(out / "metadata.json", same, command)
     if out.exists() and not out.is_dir():
         raise SystemExit(f"swingbench {command}: --out {out} is a file, not a folder")
     try:
@@ -249,6 +255,22 @@ def open_results(out: Path, resume: bool, command: str) -> tuple[RowStore, Store
         print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
               f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
     return store, contents
+
+
+def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
+    """SystemExit when the metadata at `path` records another value of a key of `same` (an
+    unreadable or missing file, or a missing key, is no evidence either way)."""
+    try:
+        recorded = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if not isinstance(recorded, dict):
+        return
+    for key, value in same.items():
+        if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
+            raise SystemExit(f"swingbench {command}: --resume continues the run in {path.parent}, made with "
+                             f"{key} {recorded[key]!r}, not {value!r}: run it with the same options, or "
+                             "without --resume")
 
 
 def interrupted_message(store: RowStore, argv: list[str]) -> str:

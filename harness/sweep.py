@@ -400,7 +400,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.runs import Settings
     from harness.store import atomic_write
 
-    store, contents = open_results(args.out, args.resume, "sweep")
+    store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()})
     settings = Settings(name="sweep", threads=1, retrain=args.retrain)
     executor = (f"dask scheduler {args.scheduler}" if args.scheduler else
                 f"dask LocalCluster, {args.workers} worker process(es)" if args.dask_local else

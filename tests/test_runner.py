@@ -207,3 +207,11 @@ def test_report_on_a_missing_folder_creates_nothing(tmp_path):
     with pytest.raises(SystemExit, match="is not a folder of results"):
         main(["report", str(tmp_path / "missing")])
     assert not (tmp_path / "missing").exists()
+
+
+def test_resume_refuses_a_run_made_with_other_settings(tmp_path, counting):
+    argv = ["run", "--solver", "counting", "--suite", "one", "--progress", "off", "--out", str(tmp_path)]
+    assert main([*argv, "--quick"]) == 0
+    with pytest.raises(SystemExit, match="made with settings 'quick', not 'default'"):
+        main([*argv, "--resume"])
+    assert main([*argv, "--quick", "--resume"]) == 0

@@ -306,3 +306,25 @@ def test_summary_statistics_over_seeds():
     assert first["fit_s_median"] == pytest.approx(20.0)
     md = sweep._markdown(table, {"runs": 7})
     assert "0.002 [0.001, 0.003]" in md and "3 / 1" in md and "No latency" in md
+
+
+def test_ctrl_c_stops_a_sweep_with_one_line_and_resume_finishes_it(tmp_path, monkeypatch, capsys):
+    from harness import executors
+
+    def interrupted_after_one_run(workers):
+        def run(jobs, settings):
+            yield from executors.inline(jobs[:1], settings)
+            raise KeyboardInterrupt
+        return run
+
+    monkeypatch.setattr(executors, "joblib", interrupted_after_one_run)
+    spec, out = str(_write(tmp_path, CHEAP)), tmp_path / "out"
+    assert _cli(spec, "--out", str(out)) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("[swingbench] interrupted: 2 completed unit(s) of work kept") and "--resume" in err[-1]
+    monkeypatch.setattr(executors, "joblib", lambda workers: executors.inline)
+    assert _cli(spec, "--out", str(out), "--resume") == 0
+    rows = RowStore(out).rows()
+    assert sorted((r["suite"], r["p_rtol"]) for r in rows if r["suite"] == "fit") == [("fit", 1e-6), ("fit", 1e-3)]
+    with pytest.raises(SystemExit, match="made with spec"):
+        _cli(str(_write(tmp_path, {**CHEAP, "options": {"atol": 1e-9}})), "--out", str(out), "--resume")
