@@ -1,6 +1,6 @@
-"""Fault injection: a real `swingbench run` in a subprocess, killed (SIGKILL) or interrupted (SIGINT,
-Ctrl-C) at random moments, then `--resume`d: it must end with exactly the rows of an uninterrupted
-run, and a second `--resume` must change nothing."""
+"""Fault injection: a real `swingbench run` in a subprocess, killed (SIGKILL) and interrupted (SIGINT,
+Ctrl-C) at random moments, each time continued with `--resume`: it must end with exactly the rows of
+an uninterrupted run, and a second `--resume` must change nothing."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import pytest
 
 from harness.store import RowStore
 
-ARGV = ["run", "--quick", "--solver", "scipy-odeint", "--suite", "latency", "--progress", "off"]
+ARGV = ["run", "--quick", "--solver", "scipy-odeint", "--suite", "latency", "--threads", "1", "--progress", "off"]
 # Columns whose values are measurements (times, repeat counts, where it ran), not what was measured.
 MEASURED = {"repeats", "worker", "point_repeats"}
 
@@ -48,24 +48,30 @@ def uninterrupted(tmp_path_factory) -> list[tuple]:
     return _identity(RowStore(out).rows())
 
 
-@pytest.mark.parametrize("sig,seed", [(signal.SIGKILL, 0), (signal.SIGKILL, 1), (signal.SIGINT, 2)])
-def test_resume_after_a_kill_ends_with_the_rows_of_an_uninterrupted_run(sig, seed, uninterrupted, tmp_path):
-    rng = random.Random(seed)
-    proc = _swingbench(tmp_path)
-    # a random moment: after a random number of recorded units of work (0: possibly still importing;
-    # Ctrl-C is sent once the run has started, Python's own start-up is not swingbench's to handle)
-    wait_for, deadline = rng.randrange(0 if sig == signal.SIGKILL else 1, 4), time.monotonic() + 120
-    while _completed(tmp_path) < wait_for and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    time.sleep(rng.uniform(0.0, 0.3))
-    finished = proc.poll() is not None
-    proc.send_signal(sig)
-    code = proc.wait(timeout=120)
-    err = proc.stderr.read()
-    if not finished:
-        if sig == signal.SIGKILL:
+# Three interruptions of one run, each at a random moment of what is left (seeds 0, 1, 2): two
+# SIGKILLs, then Ctrl-C, each continued with --resume; the last --resume finishes the run.
+INTERRUPTIONS = ((signal.SIGKILL, 0), (signal.SIGKILL, 1), (signal.SIGINT, 2))
+
+
+def test_resume_after_kills_ends_with_the_rows_of_an_uninterrupted_run(uninterrupted, tmp_path):
+    for sig, seed in INTERRUPTIONS:
+        rng = random.Random(seed)
+        start = _completed(tmp_path)
+        proc = _swingbench(tmp_path, *(["--resume"] if start else []))
+        # after a random number of newly recorded units of work (0: possibly still importing; Ctrl-C
+        # is sent once the run has started, Python's own start-up is not swingbench's to handle)
+        wait_for = start + rng.randrange(0 if sig == signal.SIGKILL else 1, 3)
+        deadline = time.monotonic() + 120
+        while _completed(tmp_path) < wait_for and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(rng.uniform(0.0, 0.3))
+        finished = proc.poll() is not None
+        proc.send_signal(sig)
+        code = proc.wait(timeout=120)
+        err = proc.stderr.read()
+        if not finished and sig == signal.SIGKILL:
             assert code == -signal.SIGKILL
-        else:
+        elif not finished:
             assert code == 130, err
             assert err.strip().splitlines()[-1].startswith("[swingbench] interrupted"), err
 
@@ -73,8 +79,7 @@ def test_resume_after_a_kill_ends_with_the_rows_of_an_uninterrupted_run(sig, see
     assert resumed.wait(timeout=300) == 0, resumed.stderr.read()
     assert _identity(RowStore(tmp_path).rows()) == uninterrupted
 
-    if seed == 0:  # a second resume of the finished run changes nothing
-        before = (tmp_path / "rows.jsonl").read_bytes()
-        again = _swingbench(tmp_path, "--resume")
-        assert again.wait(timeout=300) == 0, again.stderr.read()
-        assert (tmp_path / "rows.jsonl").read_bytes() == before
+    before = (tmp_path / "rows.jsonl").read_bytes()  # a second resume of the finished run changes nothing
+    again = _swingbench(tmp_path, "--resume")
+    assert again.wait(timeout=300) == 0, again.stderr.read()
+    assert (tmp_path / "rows.jsonl").read_bytes() == before

@@ -341,6 +341,8 @@ def test_paper_configs_run_in_float32(name, config, monkeypatch):
         loss, grad = trainer.loss_and_grad(theta)
         assert float(np.float32(loss)) == loss
         np.testing.assert_array_equal(grad, grad.astype(np.float32))
+    if name != "torch-pinn":  # the float64 build costs JAX another compilation; torch shows the contrast
+        return
     # ... where the float64 build of the same problem does not, and agrees to float32 accuracy
     loss64, grad64 = real_compile(*compiled[-1][1], "float64").loss_and_grad(solver.identification["theta"])
     assert not np.array_equal(grad64, grad64.astype(np.float32))
