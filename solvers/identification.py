@@ -152,7 +152,8 @@ def assess(est: Estimate, shortfall: str | None = None) -> Assessment:
             se_log = math.sqrt(var)
             se[key] = values[key] * se_log
             if math.isfinite(q):
-                ci[key] = (values[key] * math.exp(-q * se_log), values[key] * math.exp(q * se_log))
+                with np.errstate(over="ignore", under="ignore"):  # a huge se_log gives (0, inf): no interval
+                    ci[key] = (float(values[key] * np.exp(-q * se_log)), float(values[key] * np.exp(q * se_log)))
     if finite and est.bounds is not None:
         for key, bounds in zip(("m", "d"), est.bounds):
             side = _on_bound(values[key], bounds)

@@ -121,6 +121,8 @@ def test_assess_rules():
     wide = assess(fine._replace(cov_log=np.diag([1.0, 1e-4])))
     assert not wide.success and "wider than the estimate" in wide.message
     assert not assess(fine._replace(d=float("nan"))).success
+    huge = assess(fine._replace(cov_log=np.diag([1e6, 1e-4])))  # exp(q se_log) overflows: no interval, no crash
+    assert not huge.success and "no finite 95 % interval for m" in huge.message
     assert assess(Estimate(0.25, 0.15, 5, True, "no uncertainty")).success  # NaN fields, no rule applies
 
 
