@@ -14,7 +14,7 @@ from solvers import SOLVERS, UNAVAILABLE, make_solver
 ALL_SOLVERS = tuple(SOLVERS)
 
 # Small budgets for the adapters that train: the contract tests check behaviour, not accuracy.
-SMALL_BUDGET = {"max_iterations": 30, "progress": False}
+SMALL_BUDGET = {"max_iterations": 30, "n_f": 300, "progress": False}
 
 
 def small_options(name: str) -> dict:
