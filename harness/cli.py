@@ -84,7 +84,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from harness.cases import CASES
     from harness.report import metadata, write_report
-    from harness.runner import interrupted_message, open_results, run_suites
+    from harness.runner import execute, interrupted_message, open_results, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs
     from harness.store import atomic_write
     from harness.suites import SUITES
@@ -102,7 +102,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise SystemExit("swingbench run: no solver/config combination selected")
-    store, _ = open_results(args.out, args.resume, "run", same={"settings": settings.name, "threads": args.threads})
+    store, contents = open_results(args.out, args.resume, "run",
+                                   same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
     classes = {spec.solver: solver_class(spec.solver) for spec in specs}
     blas = {name: cls.blas_threads for name, cls in classes.items() if cls is not None and cls.blas_threads}
@@ -112,7 +113,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
-        run_suites(specs, cases, suites, settings, store, progress=progress, resume=args.resume)
+        execute(plan(specs, cases, [SUITES[name] for name in suites]), settings, store, progress=progress,
+                done=contents.completed if contents else None)  # open_results prepared the resume
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130

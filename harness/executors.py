@@ -15,11 +15,11 @@ from typing import Any
 
 from harness.runner import Unit, run_unit, run_unit_in_worker
 from harness.runs import Settings
+from harness.timing import THREAD_ENV
 
-__all__ = ["THREAD_ENV_FOR_WORKERS", "dask", "dask_client", "inline", "joblib"]
+__all__ = ["dask", "dask_client", "inline", "joblib"]
 
 Jobs = list[tuple[Unit, tuple[str, ...]]]
-THREAD_ENV_FOR_WORKERS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
 
 
 def inline(jobs: Jobs, settings: Settings) -> Iterator[tuple[Unit, str, list[dict] | None]]:
@@ -112,7 +112,7 @@ def dask_client(scheduler: str | None, workers: int, threads: int = 1) -> Iterat
                       "runs on one worker share its cores and their times contend", file=sys.stderr)
             yield client
         return
-    env = {var: str(threads) for var in THREAD_ENV_FOR_WORKERS}
+    env = {var: str(threads) for var in THREAD_ENV}
     with LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, dashboard_address=None,
                       env=env) as cluster, Client(cluster) as client:
         yield client

@@ -21,7 +21,7 @@ from harness.versions import library_versions
 from solvers.base import AbstractSolver, FitReport
 
 __all__ = ["CACHE_FORMAT", "QUERY_ONLY_OPTIONS", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version",
-           "load_cached", "persistable", "store_cached"]
+           "load_cached", "store_cached"]
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,9 +49,6 @@ def code_version() -> str:
 def Persistable(solver: AbstractSolver) -> bool:
     """Whether the adapter can save and load trained models."""
     return callable(getattr(solver, "save", None)) and callable(getattr(solver, "load", None))
-
-
-persistable = Persistable
 
 
 def cache_key(solver: AbstractSolver) -> str:

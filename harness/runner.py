@@ -63,8 +63,12 @@ class Unit:
                         blas_threads=cls.blas_threads or settings.threads)
         return base
 
+    def work_key(self, work: str) -> dict[str, Any]:
+        """The columns that name its unit of work `work` (`harness.store.UNIT_COLUMNS`)."""
+        return {"suite": work, "case": self.case.name, **self.spec.key()}
+
     def key(self, work: str) -> tuple:
-        return unit_key({"suite": work, "case": self.case.name, **self.spec.key()})
+        return unit_key(self.work_key(work))
 
     @property
     def label(self) -> str:
@@ -199,7 +203,7 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
             if rows is None:
                 counts["lost"] += 1
             else:
-                store.record({"suite": work, "case": unit.case.name, **unit.spec.key()}, rows)
+                store.record(unit.work_key(work), rows)
                 counts["ok" if all(r.get("status") == "ok" for r in rows) else "failed"] += 1
             if bar:
                 bar.set_description(f"{unit.label} {work}")

@@ -65,7 +65,6 @@ DEFAULT_CASES = ("smib-inference",)
 # Set by the sweep, never by a spec: the seed comes from "seeds", every run gets `threads` = 1.
 RESERVED_OPTIONS = {"seed": 'set seeds with the top-level "seeds" list',
                     "threads": "every sweep run uses 1 thread"}
-KEY_COLUMNS = ("case", "solver", "config", "variant", "seed")
 
 
 # --------------------------------------------------------------------------------------------- spec
@@ -261,7 +260,7 @@ def summary_table(frame) -> Any:
     params = [c for c in frame.columns if c.startswith("p_")]
     groups = ["case", "solver", "config", "point"]
     accuracy = frame[frame["suite"] == "accuracy"]
-    runs = accuracy.groupby([*groups, *KEY_COLUMNS[3:]], sort=False, dropna=False)["status"].agg(
+    runs = accuracy.groupby([*groups, "variant", "seed"], sort=False, dropna=False)["status"].agg(
         lambda s: (s == "ok").all()).rename("ok").reset_index()
     fits = frame[(frame["suite"] == "fit") & (frame["status"] == "ok")].reindex(columns=[*groups, "fit_s"])
     table = runs.groupby(groups, sort=False).agg(runs_ok=("ok", "sum"), failed=("ok", lambda s: int((~s).sum())))
@@ -307,7 +306,7 @@ def write_outputs(store, out: Path, meta: dict) -> str:
     """sweep.csv (every row, tidy) and sweep.md from `store`, atomically; returns the Markdown."""
     import pandas as pd
 
-    from harness.store import atomic_write
+    from harness.store import UNIT_COLUMNS, atomic_write
 
     frame = pd.DataFrame(store.rows())
     if not frame.empty:
@@ -317,7 +316,7 @@ def write_outputs(store, out: Path, meta: dict) -> str:
         frame = frame.drop(columns=[c for c in listy if not c.startswith("p_")]).assign(**{
             c: frame[c].map(lambda v: json.dumps(v) if isinstance(v, (list, tuple)) else v)
             for c in listy if c.startswith("p_")})
-        front = [c for c in ("suite", *KEY_COLUMNS, "point") if c in frame.columns]
+        front = [c for c in (*UNIT_COLUMNS, "point") if c in frame.columns]
         params = sorted(c for c in frame.columns if c.startswith("p_"))
         rest = [c for c in frame.columns if c not in front and c not in params]
         frame = frame[[*front, *params, *rest]]

@@ -100,8 +100,11 @@ def _compiled(system: SwingSystem, method: str, batch: str, adaptive: bool, max_
     return jax.jit(values), jax.jit(sensitivities)
 
 
+Method = Literal[tuple(METHODS)]  # one of the keys of METHODS
+
+
 class DiffraxOptions(ToleranceOptions):
-    method: Literal["dopri8", "dopri5", "tsit5"] = "dopri8"  # the keys of METHODS
+    method: Method = "dopri8"
     dt: PositiveFloat | None = None  # s; None: adaptive
     batch: Literal["stacked", "vmap"] = "stacked"
     max_steps: PositiveInt = 16384

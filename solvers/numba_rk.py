@@ -37,8 +37,11 @@ def system_array(system: SwingSystem) -> np.ndarray:
     return np.column_stack([np.array(columns, np.float64).T, np.array(system.B, np.float64)])
 
 
+Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.METHODS`
+
+
 class NumbaRKOptions(ToleranceOptions):
-    method: Literal["dop853", "dopri5", "rk4"] = "dop853"  # the keys of `numba_kernels.METHODS`
+    method: Method = "dop853"
     dt: PositiveFloat = 0.1  # s; <= the case's t_final (checked by the adapter)
     max_steps: PositiveInt = 100_000
     parallel: StrictBool = False

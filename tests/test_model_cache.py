@@ -173,7 +173,7 @@ def test_the_key_covers_every_training_option_and_no_query_only_one(monkeypatch)
         with monkeypatch.context() as patch:
             patch.setattr(model_cache, name, fake)
             assert cache_key(base) != key, name
-    assert model_cache.persistable is model_cache.Persistable and model_cache.Persistable(base)
+    assert model_cache.Persistable(base)
 
 
 # ---- the PINN model files on their own -----------------------------------------------------------
