@@ -5,7 +5,7 @@ Nothing here is a second implementation of a measurement. Timings call the adapt
 `solve` and `identify` on the harness's queries (`harness.suites.latency.queries`) and observations
 (`harness.suites.identification.observations`); errors are the rows of the harness's suites
 (`harness.suites.accuracy.accuracy`, `harness.suites.identification.identification`, which compute
-them with `harness.metrics` against `harness.reference`); trained models go through the harness's
+them with `harness.metrics` against `systems.reference`); trained models go through the harness's
 model cache (`harness.runner.fit_or_load`).
 
 Parameters: `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks import THREADS
-from harness.cases import SMIB_INFERENCE, Observations
+from systems.cases import SMIB_INFERENCE, Observations
 from harness.runner import fit_or_load
 from harness.runs import DEFAULT, QUICK, Settings, SolverSpec, default_specs
 from harness.suites import SUITES

@@ -82,7 +82,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
-    from harness.cases import CASES
+    from systems.cases import CASES
     from harness.report import metadata, write_report
     from harness.runner import execute, interrupted_message, open_results, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs

@@ -39,8 +39,7 @@ def code_version() -> str:
     """Hash of the sources that determine a trained model: the model, cases, the reference that
     makes its training data, and the solver packages."""
     digest = hashlib.sha256()
-    for path in sorted([*(_ROOT / "solvers").rglob("*.py"), _ROOT / "harness" / "model.py",
-                        _ROOT / "harness" / "cases.py", _ROOT / "harness" / "reference.py"]):
+    for path in sorted([*(_ROOT / "solvers").rglob("*.py"), *(_ROOT / "systems").rglob("*.py")]):
         digest.update(path.relative_to(_ROOT).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:12]

@@ -19,7 +19,7 @@ from harness.analysis import (
     ok,
     trained,
 )
-from harness.reference import PAPER_DATA, REFERENCE_DATA
+from systems.reference import PAPER_DATA, REFERENCE_DATA
 
 __all__ = ["PAPER", "paper_table"]
 

@@ -14,7 +14,7 @@ import pandas as pd
 from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
-from harness.cases import CASES, standard_grid
+from systems.cases import CASES, standard_grid
 
 __all__ = ["make_plots"]
 

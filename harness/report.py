@@ -32,7 +32,7 @@ from harness.analysis import (
     trained,
 )
 from harness.paper import paper_table
-from harness.reference import OFF_TRAINING
+from systems.reference import OFF_TRAINING
 from harness.store import atomic_write
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions

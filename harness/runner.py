@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from harness.cases import Case
+from systems.cases import Case
 from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key

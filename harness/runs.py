@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from harness.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION, Case
+from systems.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION, Case
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 

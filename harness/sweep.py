@@ -10,7 +10,7 @@ SPEC is a JSON file::
     {
       "solver": "torch-pinn",              # a registered adapter (required)
       "config": "default",                 # one of its named configs (default "default")
-      "cases": ["smib-inference"],         # harness.cases.CASES names (default ["smib-inference"])
+      "cases": ["smib-inference"],         # systems.cases.CASES names (default ["smib-inference"])
       "seeds": [0, 1, 2],                  # only for adapters that train (a `seed` option);
                                            # default [0]; adapters without one take no "seeds"
       "grid": {"width": [10, 20],          # option -> the values to sweep (non-empty lists);
@@ -88,7 +88,7 @@ class SweepSpec:
 
     def units(self) -> list:
         """Every run as a `harness.runner.Unit`: for each case, grid point and seed, in that order."""
-        from harness.cases import CASES
+        from systems.cases import CASES
         from harness.runner import Unit
         from harness.runs import SolverSpec
 
@@ -134,7 +134,7 @@ def _check_value(where: str, value: Any) -> Any:
 def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
     """Validate a spec (the parsed JSON) and return it; ValueError names the bad key. With `check`,
     each grid point's adapter is constructed once (not fitted) so bad option values fail here."""
-    from harness.cases import CASES
+    from systems.cases import CASES
     from solvers import SOLVERS, UNAVAILABLE
 
     if not isinstance(raw, Mapping):
@@ -218,7 +218,7 @@ def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
 
 def _check_points(spec: SweepSpec) -> None:
     """Construct (not fit) the adapter once per grid point: it rejects bad option values."""
-    from harness.cases import CASES
+    from systems.cases import CASES
     from solvers import make_solver
 
     case = CASES[spec.cases[0]]

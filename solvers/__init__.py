@@ -12,7 +12,7 @@ import importlib.util
 from collections.abc import Iterator, MutableMapping
 from typing import Any
 
-from harness.cases import Case
+from systems.cases import Case
 from solvers.base import AbstractSolver
 
 __all__ = ["INTERFACE", "SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers", "make_solver",

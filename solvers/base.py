@@ -9,7 +9,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from harness.cases import Case, Observations, check_array
+from systems.cases import Case, Observations, check_array
 from solvers.identification import Estimate, assess, data_shortfall
 from solvers.options import OptionSchema, defaults, validate_options
 
@@ -53,8 +53,9 @@ def _small_vector(value: Any, nonnegative: bool) -> tuple[np.ndarray | None, flo
 
 
 class Trajectory(NamedTuple):
-    """Solution on a grid: t (n_t,) s, P1 (n_p,) p.u., delta and omega (n_p, n_t) rad and rad/s,
-    float64, in the order of the query (t as given, repeats kept)."""
+    """Solution on a grid: t (n_t,) s, P1 (n_p,) p.u., delta and omega (n_p, n_t, n) rad and rad/s,
+    float64, in the order of the query (t as given, repeats kept), one entry per machine on the last
+    axis (n = 1 for the SMIB: the shape rule has no special case)."""
 
     t: np.ndarray
     P1: np.ndarray
@@ -63,8 +64,8 @@ class Trajectory(NamedTuple):
 
 
 class Points(NamedTuple):
-    """Solution at scattered points: sample i is delta (rad) and omega (rad/s) at time t[i] (s) for
-    P1[i] (p.u.); four float64 arrays of shape (n,)."""
+    """Solution at scattered points: sample i is every machine's delta (rad) and omega (rad/s) at
+    time t[i] (s) for P1[i] (p.u.); t and P1 float64 (n_s,), delta and omega float64 (n_s, n)."""
 
     t: np.ndarray
     P1: np.ndarray
@@ -82,23 +83,24 @@ class FitReport(NamedTuple):
 
 
 class Identification(NamedTuple):
-    """Estimated inertia m and damping d (p.u.), wall seconds, iterations, success, message, and
-    their uncertainty: standard errors m_se, d_se (p.u.; delta method, value x the standard error
-    of its log) and 95 % intervals m_ci95, d_ci95 as (low, high) p.u. (exp(log value +- q se_log), q
-    the Student-t quantile; Gauss-Newton, i.e. linearised at the estimate, independent errors of
-    one variance); NaN when unknown. success is False, with the reason in message, when the data or
-    the fit cannot support the estimate (the rules of `solvers.identification`)."""
+    """Estimated inertia m and damping d of every machine, (n,) p.u., wall seconds, iterations,
+    success, message, and their uncertainty: standard errors m_se, d_se (n,) p.u. (delta method,
+    value x the standard error of its log) and 95 % intervals m_ci95, d_ci95 (n, 2), rows (low,
+    high) p.u. (exp(log value +- q se_log), q the Student-t quantile; Gauss-Newton, i.e. linearised
+    at the estimate, independent errors of one variance); NaN when unknown. success is False, with
+    the reason in message, when the data or the fit cannot support the estimate (the rules of
+    `solvers.identification`)."""
 
-    m: float
-    d: float
+    m: np.ndarray
+    d: np.ndarray
     seconds: float
     iterations: int
     success: bool
     message: str
-    m_se: float = float("nan")
-    d_se: float = float("nan")
-    m_ci95: tuple[float, float] = (float("nan"), float("nan"))
-    d_ci95: tuple[float, float] = (float("nan"), float("nan"))
+    m_se: np.ndarray
+    d_se: np.ndarray
+    m_ci95: np.ndarray
+    d_ci95: np.ndarray
 
 
 _new_trajectory = tuple.__new__
@@ -122,8 +124,9 @@ class AbstractSolver(abc.ABC):
     2. implement `_fit()`: the untimed preparation (build integrators, JIT, train), returning a
        `FitReport` or None; `fit()` times it and marks the solver ready,
     3. implement `_solve(t, P1)` on validated arrays (t: 1-D, >= 0 s, any order, repeats allowed;
-       P1: 1-D) returning `(delta, omega)`, each (len(P1), len(t)), in the order of t,
-    4. implement `_identify(obs)` returning an `Estimate` (`solvers.identification`): m, d,
+       P1: 1-D) returning `(delta, omega)`, each (len(P1), len(t), n) for the case's n machines,
+       in the order of t; generator 1's mechanical power is P1, the others' the case's p_m,
+    4. implement `_identify(obs)` returning an `Estimate` (`solvers.identification`): m, d (n,),
        iterations, success, message and, where it can, the covariance of (log m, log d) with its
        degrees of freedom and condition number, and the search box; `identify()` validates and
        times it and applies the shared rules (enough distinct samples, bound, conditioning,
@@ -174,7 +177,7 @@ class AbstractSolver(abc.ABC):
 
     def __init__(self, case: Case, config: str = "default", **options: Any) -> None:
         if not isinstance(case, Case):
-            raise ValueError(f"case must be a harness.cases.Case, got {type(case).__name__}")  # noqa: TRY004
+            raise ValueError(f"case must be a systems.cases.Case, got {type(case).__name__}")  # noqa: TRY004
         if config not in self.CONFIGS:
             raise ValueError(
                 f"unknown config {config!r} for {self.name}; known: {', '.join(self.CONFIGS)}"
@@ -211,8 +214,9 @@ class AbstractSolver(abc.ABC):
         return report._replace(seconds=seconds)
 
     def solve(self, t_query, P1, extrapolate: bool = False) -> Trajectory:
-        """delta (rad) and omega (rad/s) at times `t_query` (1-D, s, >= 0, any order) for each P1
-        (float or 1-D, p.u.); arrays of shape (len(P1), len(t_query)), float64.
+        """delta (rad) and omega (rad/s) of every machine at times `t_query` (1-D, s, >= 0, any
+        order) for each P1 (float or 1-D, p.u., generator 1's mechanical power); arrays of shape
+        (len(P1), len(t_query), n), float64.
 
         Small float64 arrays and Python floats take a fast path (checked in pure Python: the whole
         call costs ~2 us with an adapter that does nothing); anything else goes through
@@ -264,7 +268,8 @@ class AbstractSolver(abc.ABC):
     def solve_points(self, t_query, P1, extrapolate: bool = False) -> Points:
         """delta (rad) and omega (rad/s) at the pairs (t_query[i] s, P1[i] p.u.) of two 1-D arrays
         of one length n (a batch of single-point queries, as a Monte Carlo or an optimiser loop
-        makes them); four float64 arrays of shape (n,). Validated like `solve`, domain included."""
+        makes them): t, P1 (n_s,) and delta, omega (n_s, n) float64. Validated like `solve`, domain
+        included."""
         if not self.fitted:
             raise NotFittedError(f"{self.name}: call fit() (or load()) before solve_points()")
         t = check_array("t_query", t_query, nonnegative=True)
@@ -277,28 +282,33 @@ class AbstractSolver(abc.ABC):
         return Points(t, p1, np.asarray(delta, np.float64), np.asarray(omega, np.float64))
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(delta, omega), each (n,), at the pairs (t[i], P1[i]). Default: one `_solve` per pair;
+        """(delta, omega), each (n_s, n), at the pairs (t[i], P1[i]). Default: one `_solve` per pair;
         adapters that can do better (one compiled loop, one vectorised network call) override it."""
-        delta, omega = np.empty(t.size), np.empty(t.size)
+        delta, omega = np.empty((t.size, self.case.n)), np.empty((t.size, self.case.n))
         for i in range(t.size):
             d, o = self._solve(t[i:i + 1], P1[i:i + 1])
             delta[i], omega[i] = d[0, 0], o[0, 0]
         return delta, omega
 
     def identify(self, obs: Observations) -> Identification:
-        """Estimate m and d (p.u.) from scattered observations of the case's system."""
+        """Estimate every machine's m and d (p.u.) from scattered observations of the case's system
+        (obs.delta with one column per machine: a ValueError names it otherwise)."""
         if not isinstance(obs, Observations):
-            raise ValueError(f"obs must be harness.cases.Observations, got {type(obs).__name__}")  # noqa: TRY004
+            raise ValueError(f"obs must be systems.cases.Observations, got {type(obs).__name__}")  # noqa: TRY004
+        obs.check_machines(self.case)
         start = time.perf_counter()
         # too little data is an outcome (success False), not a programming error; fewer samples than
         # unknowns leave nothing to fit, more are fitted and the estimate kept, though not trusted
         if len(obs) < 2:
-            nan = float("nan")
-            return Identification(nan, nan, time.perf_counter() - start, 0, False, data_shortfall(obs))
+            nan = np.full(self.case.n, np.nan)
+            return Identification(nan, nan, time.perf_counter() - start, 0, False, data_shortfall(obs),
+                                  nan, nan, np.full((self.case.n, 2), np.nan), np.full((self.case.n, 2), np.nan))
         est = Estimate(*self._identify(obs))  # a plain 5-tuple is an estimate without uncertainty
         verdict = assess(est, data_shortfall(obs))
+        m = np.atleast_1d(np.asarray(est.m, np.float64))
+        d = np.atleast_1d(np.asarray(est.d, np.float64))
         return Identification(
-            float(est.m), float(est.d), time.perf_counter() - start, int(est.iterations), verdict.success,
+            m, d, time.perf_counter() - start, int(est.iterations), verdict.success,
             verdict.message, verdict.m_se, verdict.d_se, verdict.m_ci95, verdict.d_ci95,
         )
 

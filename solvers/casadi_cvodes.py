@@ -7,8 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from harness.cases import Observations
-from harness.model import accelerations, smib_system
+from systems.cases import Observations
+from systems.model import accelerations, smib_system
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,

@@ -11,8 +11,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from harness.cases import Observations
-from harness.model import SwingSystem, accelerations, smib_system
+from systems.cases import Observations
+from systems.model import SwingSystem, accelerations, smib_system
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
@@ -44,7 +44,7 @@ def _pad(x: np.ndarray, size: int) -> np.ndarray:
 
 def _vector_field(system: SwingSystem):
     """f(t, y, (P, m, d)) of the n-machine swing equation; y (2n, ...) = [delta_1..n, omega_1..n]
-    (rad, rad/s), P (n, ...) p.u., m and d (n,): the matrix form of `harness.model.accelerations`."""
+    (rad, rad/s), P (n, ...) p.u., m and d (n,): the matrix form of `systems.model.accelerations`."""
     n = system.n
 
     def field(t, y, args):

@@ -1,4 +1,4 @@
-"""When an identification of (m, d) can be trusted, and how far: the rules every adapter shares.
+"""When an identification of every machine's (m_k, d_k) can be trusted, and how far: the rules every adapter shares.
 
 An adapter's `_identify` returns an `Estimate`: the point estimate and, where it has one, the
 Gauss-Newton covariance of (log m, log d) with its residual degrees of freedom. `AbstractSolver.identify`
@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from harness.cases import Observations
+from systems.cases import Observations
 
 __all__ = [
     "BOUND_RTOL", "MAX_CONDITION", "MAX_REL_HALF_WIDTH", "MIN_DISTINCT_SAMPLES", "Assessment", "Estimate",
@@ -48,32 +48,34 @@ _NAN2 = (_NAN, _NAN)
 
 
 class Estimate(NamedTuple):
-    """What an adapter's `_identify` returns: m, d (p.u.), iterations, the method's own success and
-    message; cov_log, the (2, 2) covariance of (log m, log d) (None when unknown), with dof residual
-    degrees of freedom (for the Student-t quantile) and condition, cond(J^T J) of the Jacobian it
-    came from; bounds, the search box ((m_low, m_high), (d_low, d_high)) p.u., None without one."""
+    """What an adapter's `_identify` returns: m, d (n,) p.u. (one per machine; a number is one
+    machine's), iterations, the method's own success and message; cov_log, the (2n, 2n) covariance
+    of (log m_1..n, log d_1..n) (None when unknown), with dof residual degrees of freedom (for the
+    Student-t quantile) and condition, cond(J^T J) of the Jacobian it came from; bounds, the search
+    boxes (m_box, d_box), each (n, 2) rows (low, high) p.u., None without one."""
 
-    m: float
-    d: float
+    m: np.ndarray
+    d: np.ndarray
     iterations: int
     success: bool
     message: str
     cov_log: np.ndarray | None = None
     dof: int = 0
     condition: float = _NAN
-    bounds: tuple[tuple[float, float], tuple[float, float]] | None = None
+    bounds: tuple[np.ndarray, np.ndarray] | None = None
 
 
 class Assessment(NamedTuple):
-    """The verdict on an `Estimate`: success, message, standard errors m_se, d_se (p.u., delta
-    method: value x se of its log) and 95 % intervals m_ci95, d_ci95 (low, high) p.u.; NaN when unknown."""
+    """The verdict on an `Estimate`: success, message, standard errors m_se, d_se (n,) p.u. (delta
+    method: value x se of its log) and 95 % intervals m_ci95, d_ci95 (n, 2) rows (low, high) p.u.;
+    NaN when unknown."""
 
     success: bool
     message: str
-    m_se: float
-    d_se: float
-    m_ci95: tuple[float, float]
-    d_ci95: tuple[float, float]
+    m_se: np.ndarray
+    d_se: np.ndarray
+    m_ci95: np.ndarray
+    d_ci95: np.ndarray
 
 
 def data_shortfall(obs: Observations) -> str | None:
@@ -81,7 +83,8 @@ def data_shortfall(obs: Observations) -> str | None:
     distinct = np.unique(np.stack([obs.t, obs.P1]), axis=1).shape[1]
     if distinct < MIN_DISTINCT_SAMPLES:
         return (f"too few distinct samples: {distinct} distinct (t, P1) of {len(obs)}, identification "
-                f"needs at least {MIN_DISTINCT_SAMPLES} (2 unknowns and a residual variance)")
+                f"needs at least {MIN_DISTINCT_SAMPLES} (2 unknowns a machine, one value a machine "
+                "each, and a residual variance)")
     return None
 
 
@@ -121,54 +124,67 @@ def _t_quantile(dof: int) -> float:
     return float(t.ppf(0.975, dof))
 
 
-def _on_bound(value: float, bounds: tuple[float, float]) -> str | None:
+def _on_bound(value: float, bounds) -> str | None:
     for side, bound in zip(("lower", "upper"), bounds):
         if abs(math.log(value / bound)) <= BOUND_RTOL:
             return side
     return None
 
 
+def _label(key: str, k: int, n: int) -> str:
+    return key if n == 1 else f"{key}_{k + 1}"
+
+
 def assess(est: Estimate, shortfall: str | None = None) -> Assessment:
     """Standard errors, 95 % intervals and the verdict of the module's rules for `est`; `shortfall`,
-    the data's (`data_shortfall`), fails it too.
+    the data's (`data_shortfall`), fails it too. Every machine's m_k and d_k is judged; a rule
+    that fails for one fails the estimate (the message names it, m_2 for machine 2; m alone when
+    there is one machine).
 
     Intervals are exp(log value +- q se_log), q the Student-t 97.5 % quantile at est.dof: the fit is
     in log parameters, so the interval is the Gauss-Newton one there, mapped; positive and
     asymmetric. The standard errors are the delta method's, value x se_log."""
     reasons = [shortfall] if shortfall else []
-    values = {"m": est.m, "d": est.d}
-    finite = all(math.isfinite(v) and v > 0 for v in values.values())
-    se = {"m": _NAN, "d": _NAN}
-    ci = {"m": _NAN2, "d": _NAN2}
+    values = {"m": np.atleast_1d(np.asarray(est.m, np.float64)), "d": np.atleast_1d(np.asarray(est.d, np.float64))}
+    n = values["m"].size
+    finite = all(bool(np.all(np.isfinite(v) & (v > 0))) for v in values.values())
+    se = {key: np.full(n, _NAN) for key in values}
+    ci = {key: np.full((n, 2), _NAN) for key in values}
     if not finite:
-        reasons.append(f"non-finite or non-positive estimate m={est.m!r}, d={est.d!r}")
+        reasons.append(f"non-finite or non-positive estimate m={values['m'].tolist()!r}, d={values['d'].tolist()!r}")
     elif est.cov_log is not None:
         cov = np.asarray(est.cov_log, np.float64)
         q = _t_quantile(est.dof)
         for i, key in enumerate(("m", "d")):
-            var = cov[i, i]
-            if not (np.isfinite(var) and var >= 0):
-                continue
-            se_log = math.sqrt(var)
-            se[key] = values[key] * se_log
-            if math.isfinite(q):
-                with np.errstate(over="ignore", under="ignore"):  # a huge se_log gives (0, inf): no interval
-                    ci[key] = (float(values[key] * np.exp(-q * se_log)), float(values[key] * np.exp(q * se_log)))
+            for k in range(n):
+                var = cov[i * n + k, i * n + k]
+                if not (np.isfinite(var) and var >= 0):
+                    continue
+                se_log = math.sqrt(var)
+                value = float(values[key][k])
+                se[key][k] = value * se_log
+                if math.isfinite(q):
+                    with np.errstate(over="ignore", under="ignore"):  # a huge se_log gives (0, inf): no interval
+                        ci[key][k] = (value * np.exp(-q * se_log), value * np.exp(q * se_log))
     if finite and est.bounds is not None:
-        for key, bounds in zip(("m", "d"), est.bounds):
-            side = _on_bound(values[key], bounds)
-            if side:
-                reasons.append(f"{key}={values[key]:.6g} is on the {side} bound of the search box "
-                               f"{tuple(bounds)}: the data's minimum is at or outside it")
+        for key, boxes in zip(("m", "d"), est.bounds):
+            boxes = np.asarray(boxes, np.float64).reshape(n, 2)
+            for k in range(n):
+                side = _on_bound(float(values[key][k]), boxes[k])
+                if side:
+                    reasons.append(f"{_label(key, k, n)}={values[key][k]:.6g} is on the {side} bound of the "
+                                   f"search box {tuple(boxes[k].tolist())}: the data's minimum is at or outside it")
     if finite and est.cov_log is not None:
         if not (math.isfinite(est.condition) and est.condition <= MAX_CONDITION):
             reasons.append(f"ill-conditioned: cond(J^T J) = {est.condition:.3g} > {MAX_CONDITION:.0e}")
         for key in ("m", "d"):
-            low, high = ci[key]
-            if not (math.isfinite(low) and math.isfinite(high)):
-                reasons.append(f"no finite 95 % interval for {key}")
-            elif (high - low) / 2 > MAX_REL_HALF_WIDTH * values[key]:
-                reasons.append(f"95 % interval of {key} [{low:.3g}, {high:.3g}] is wider than the estimate")
+            for k in range(n):
+                low, high = ci[key][k]
+                if not (math.isfinite(low) and math.isfinite(high)):
+                    reasons.append(f"no finite 95 % interval for {_label(key, k, n)}")
+                elif (high - low) / 2 > MAX_REL_HALF_WIDTH * values[key][k]:
+                    reasons.append(f"95 % interval of {_label(key, k, n)} [{low:.3g}, {high:.3g}] is wider "
+                                   "than the estimate")
     success = bool(est.success) and not reasons
     message = "; ".join([*reasons, est.message]) if reasons else est.message
     return Assessment(success, message, se["m"], se["d"], ci["m"], ci["d"])

@@ -9,7 +9,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from harness.cases import Observations
+from systems.cases import Observations
 from solvers.base import AbstractSolver, Estimate
 
 __all__ = ["NullSolver"]

@@ -22,8 +22,8 @@ def main() -> int:
         return 0
     import numpy as np
 
-    from harness.cases import SMIB_INFERENCE
-    from harness.model import smib_system
+    from systems.cases import SMIB_INFERENCE
+    from systems.model import smib_system
     from solvers import numba_kernels
     from solvers.numba_rk import system_array
 

@@ -9,8 +9,8 @@ from typing import Any, ClassVar, Literal
 import numba
 import numpy as np
 
-from harness.cases import Observations
-from harness.model import SwingSystem, smib_system
+from systems.cases import Observations
+from systems.model import SwingSystem, smib_system
 from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (

@@ -7,11 +7,11 @@ from typing import ClassVar
 import numpy as np
 from scipy.integrate import odeint
 
-from harness.cases import Observations
-from harness.model import SwingSystem, smib_system
+from systems.cases import Observations
+from systems.cases import Case
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation, run_batch
-from solvers.scipy_rk45 import _rhs
+from solvers.scipy_rk45 import _rhs, stacked_states
 
 
 class ScipyOdeint(AbstractSolver):
@@ -30,31 +30,30 @@ class ScipyOdeint(AbstractSolver):
     blas_threads = 1
 
     def _fit(self) -> None:
-        self.system = smib_system(self.case)
+        pass
 
-    def _integrate(self, system: SwingSystem, t: np.ndarray, P1: np.ndarray) -> np.ndarray:
-        """States (2, len(P1), len(t)) at sorted unique times t >= 0 (s)."""
-        y0 = np.repeat(np.array(system.delta0 + system.omega0)[:, None], P1.size, axis=1)
-        if t[-1] == 0.0:
-            return np.repeat(y0[:, :, None], t.size, axis=2)
-        grid = t if t[0] == 0.0 else np.concatenate([[0.0], t])  # odeint starts at its first time
-        y, info = odeint(
-            _rhs, y0.ravel(), grid, args=(system, P1[None, :]), rtol=self.options["rtol"],
-            atol=self.options["atol"], tfirst=True, full_output=True, mxstep=100000,
-        )
-        if info["message"] != "Integration successful.":
-            where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
-            raise SolveError(f"{self.name}: integration failed at {where}: {info['message']}")
-        y = y[grid.size - t.size:]  # drop the prepended t = 0
-        return y.T.reshape(2, P1.size, t.size)
+    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
+
+        def integrate(y0: np.ndarray, args: tuple) -> np.ndarray:
+            if t[-1] == 0.0:
+                return np.repeat(y0[:, None], t.size, axis=1)
+            grid = t if t[0] == 0.0 else np.concatenate([[0.0], t])  # odeint starts at its first time
+            y, info = odeint(
+                _rhs, y0, grid, args=args, rtol=self.options["rtol"],
+                atol=self.options["atol"], tfirst=True, full_output=True, mxstep=100000,
+            )
+            if info["message"] != "Integration successful.":
+                where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
+                raise SolveError(f"{self.name}: integration failed at {where}: {info['message']}")
+            return y[grid.size - t.size:].T  # drop the prepended t = 0
+
+        return stacked_states(integrate, case, t, P1, np.array(case.delta0 + case.omega0))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         times, order = np.unique(t, return_inverse=True)
-        y = run_batch(lambda p1: self._integrate(self.system, times, p1), P1)
-        return y[0][:, order], y[1][:, order]
+        delta, omega = run_batch(lambda p1: self._integrate(self.case, times, p1), P1)
+        return delta[:, order], omega[:, order]
 
     def _identify(self, obs: Observations) -> Estimate:
-        return identify_by_simulation(
-            self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"],
-            self.options["rtol"],
-        )
+        return identify_by_simulation(self._integrate, self.case, obs, self.options)

@@ -7,18 +7,31 @@ from typing import ClassVar, Literal
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from harness.cases import Observations
-from harness.model import SwingSystem, accelerations, smib_system
+from systems.cases import Observations
+from systems.cases import Case
+from systems.model import Coupling, accelerations, coupling
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation
 
 
-def _rhs(t: float, y: np.ndarray, system: SwingSystem, P: np.ndarray) -> np.ndarray:
-    """y: (2n * n_batch,) as rows [delta_1..n, omega_1..n] of a (2n, n_batch) array; P: (n, n_batch)."""
-    n = system.n
+def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """y: (2n * n_batch,) as rows [delta_1..n, omega_1..n] of a (2n, n_batch) array; m, d (n,) p.u.;
+    P: (n_batch, n) p.u."""
+    n = m.size
     state = y.reshape(2 * n, -1)
-    acc = accelerations(system, state[:n], state[n:], P)
-    return np.concatenate([state[n:], np.stack(acc)]).ravel()
+    acc = accelerations(k, m, d, state[:n].T, state[n:].T, P)
+    return np.concatenate([state[n:], acc.T]).ravel()
+
+
+def stacked_states(integrate, case: Case, t: np.ndarray, P1: np.ndarray, y0: np.ndarray,
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(delta, omega), each (len(P1), len(t), n), from `integrate(y0 (2n * n_p,), args)` -> states
+    (2n * n_p, len(t)) of the stacked system of `_rhs` (rows [delta; omega] x P1)."""
+    n = case.n
+    args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(P1))
+    y = integrate(np.repeat(y0[:, None], P1.size, axis=1).ravel(), args).reshape(2 * n, P1.size, t.size)
+    y = y.transpose(1, 2, 0)  # (n_p, n_t, 2n)
+    return y[..., :n], y[..., n:]
 
 
 class RK45Options(ToleranceOptions):
@@ -41,32 +54,35 @@ class ScipyRK45(AbstractSolver):
     VARIANTS = ({"batch": "stacked"},)
 
     def _fit(self) -> None:
-        self.system = smib_system(self.case)
+        pass
 
-    def _integrate(self, system: SwingSystem, t: np.ndarray, P1: np.ndarray) -> np.ndarray:
-        """States (2, len(P1), len(t)) at sorted unique times t, all P1 in one stacked system."""
-        y0 = np.repeat(np.array(system.delta0 + system.omega0)[:, None], P1.size, axis=1)
-        if t[-1] == 0.0:
-            return np.repeat(y0[:, :, None], t.size, axis=2)
-        sol = solve_ivp(
-            _rhs, (0.0, t[-1]), y0.ravel(), method=self.method, t_eval=t,
-            rtol=self.options["rtol"], atol=self.options["atol"], args=(system, P1[None, :]),
-        )
-        if not sol.success:
-            where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
-            raise SolveError(f"{self.name}: integration failed at {where}: {sol.message}")
-        return sol.y.reshape(2, P1.size, t.size)
+    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t, all P1 in one
+        stacked system."""
+        y0 = np.array(case.delta0 + case.omega0)
+
+        def integrate(y0_all: np.ndarray, args: tuple) -> np.ndarray:
+            if t[-1] == 0.0:
+                return np.repeat(y0_all[:, None], t.size, axis=1)
+            sol = solve_ivp(
+                _rhs, (0.0, t[-1]), y0_all, method=self.method, t_eval=t,
+                rtol=self.options["rtol"], atol=self.options["atol"], args=args,
+            )
+            if not sol.success:
+                where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
+                raise SolveError(f"{self.name}: integration failed at {where}: {sol.message}")
+            return sol.y
+
+        return stacked_states(integrate, case, t, P1, y0)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         times, order = np.unique(t, return_inverse=True)
         if self.options["batch"] == "stacked":
-            y = self._integrate(self.system, times, P1)
+            delta, omega = self._integrate(self.case, times, P1)
         else:
-            y = np.concatenate([self._integrate(self.system, times, P1[i:i + 1]) for i in range(P1.size)], axis=1)
-        return y[0][:, order], y[1][:, order]
+            parts = [self._integrate(self.case, times, P1[i:i + 1]) for i in range(P1.size)]
+            delta, omega = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        return delta[:, order], omega[:, order]
 
     def _identify(self, obs: Observations) -> Estimate:
-        return identify_by_simulation(
-            self._integrate, self.case, obs, self.options["m_bounds"], self.options["d_bounds"],
-            self.options["rtol"],
-        )
+        return identify_by_simulation(self._integrate, self.case, obs, self.options)

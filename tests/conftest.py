@@ -8,7 +8,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "2")
 
 import pytest
 
-from harness.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE
 from solvers import SOLVERS, UNAVAILABLE, make_solver
 
 ALL_SOLVERS = tuple(SOLVERS)

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from harness import metrics
-from harness.cases import (
+from systems.cases import (
     IDENTIFICATION_PAIRS,
     SMIB_IDENTIFICATION,
     SMIB_INFERENCE,
@@ -19,7 +19,7 @@ from harness.cases import (
     check_array,
     standard_grid,
 )
-from harness.reference import SEED_DIR, load_seed_reference, reference, seed_reference
+from systems.reference import SEED_DIR, load_seed_reference, reference, seed_reference
 
 
 def test_paper_cases():

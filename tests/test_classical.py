@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from harness import metrics
-from harness.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
-from harness.reference import SEED_DIR, load_seed_reference, reference
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
+from systems.reference import SEED_DIR, load_seed_reference, reference
 from solvers import make_solver
 from solvers.base import SolveError
 

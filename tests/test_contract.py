@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import ALL_SOLVERS, fit_for_tests, require, small_options
 
-from harness.cases import SMIB_INFERENCE, Observations
+from systems.cases import SMIB_INFERENCE, Observations
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError, Trajectory
 

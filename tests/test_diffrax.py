@@ -10,8 +10,8 @@ import pytest
 from conftest import require
 
 from harness import metrics
-from harness.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
-from harness.reference import reference
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
+from systems.reference import reference
 from solvers import make_solver
 from solvers.base import SolveError
 
@@ -120,7 +120,7 @@ def test_jacobian_equals_finite_differences(identification_obs):
     """The sensitivities identify uses (same padded layout, so the same compiled code)."""
     import jax
 
-    from harness.model import smib_system
+    from systems.model import smib_system
     from solvers.classical import ObservationLayout
     from solvers.diffrax_ode import _compiled, _pad, bucket
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 import solvers
-from harness.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.report import write_report
 from harness.runner import run_suites
@@ -185,8 +185,8 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
 
 
 def test_identification_observations_from_the_reference_or_the_papers_data():
-    from harness.cases import SMIB_IDENTIFICATION
-    from harness.reference import SEED_DIR, load_seed_reference, reference
+    from systems.cases import SMIB_IDENTIFICATION
+    from systems.reference import SEED_DIR, load_seed_reference, reference
     from harness.suites.identification import observations
 
     tight = observations(SMIB_IDENTIFICATION, 50, seed=3)
@@ -208,7 +208,7 @@ def test_identification_observations_from_the_reference_or_the_papers_data():
 @pytest.mark.parametrize("settings", [DEFAULT, FULL], ids=["default", "full"])
 def test_default_and_full_runs_identify_from_the_papers_data(settings):
     """--full is a superset of make bench: both identify the paper's own case, also from its data."""
-    from harness.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
+    from systems.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
     from harness.suites.identification import _runs
 
     assert settings.pairs[0] == PAPER_PAIR == (0.25, 0.15)
@@ -217,7 +217,7 @@ def test_default_and_full_runs_identify_from_the_papers_data(settings):
 
 
 def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
-    from harness.cases import SMIB_IDENTIFICATION
+    from systems.cases import SMIB_IDENTIFICATION
     from harness.suites.identification import identification
 
     settings = replace(QUICK, pairs=((0.25, 0.15), (0.1, 0.05)), noise_levels=(0.0, 0.01), n_u=60)
@@ -350,7 +350,7 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
-    from harness.cases import SMIB_INFERENCE as forward
+    from systems.cases import SMIB_INFERENCE as forward
     from harness.runner import plan
     from harness.runs import default_specs
     from harness.suites import SUITES

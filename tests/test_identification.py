@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cases import SMIB_IDENTIFICATION, Observations
+from systems.cases import SMIB_IDENTIFICATION, Observations
 from harness.suites.identification import observations
 from solvers import make_solver
 from solvers.identification import MAX_CONDITION, Estimate, assess, gauss_newton_covariance

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from harness.cases import SMIB_INFERENCE, check_array
+from systems.cases import SMIB_INFERENCE, check_array
 from solvers import INTERFACE, SOLVERS, make_solver, solver_class
 from solvers.base import Points, Trajectory
 from solvers.null import NullSolver

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from harness import model_cache
-from harness.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from harness.model_cache import QUERY_ONLY_OPTIONS, cache_key, store_cached
 from harness.runner import fit_or_load
 from harness.runs import QUICK

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from harness import metrics
-from harness.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
-from harness.reference import reference
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
+from systems.reference import reference
 from harness.suites.identification import observations
 from solvers import make_solver
 from solvers import numba_kernels as kernels

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from harness.cases import SMIB_INFERENCE, check_array
+from systems.cases import SMIB_INFERENCE, check_array
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 from solvers.classical import ToleranceOptions

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations
 from harness.metrics import rel_l2
-from harness.model import smib_system
-from harness.reference import reference
+from systems.model import smib_system
+from systems.reference import reference
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network, spec
@@ -204,7 +204,7 @@ def test_torch_query_on_the_full_grid_matches_autodiff():
     _need("torch-pinn")
     import torch
 
-    from harness.cases import standard_grid
+    from systems.cases import standard_grid
     from solvers.pinn.torch_pinn import _SIGMOID_TANH_MIN, _FastForward, _tanh_
 
     z = torch.linspace(-40.0, 40.0, 2 * _SIGMOID_TANH_MIN + 1, dtype=torch.float64)

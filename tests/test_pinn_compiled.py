@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE
 from solvers import make_solver
 from solvers.pinn import spec
 

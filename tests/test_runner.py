@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import solvers
-from harness.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.runner import run_suites
 from harness.runs import QUICK, SolverSpec

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from harness import sweep
-from harness.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE
 from harness.runner import Unit, run_unit_in_worker
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore

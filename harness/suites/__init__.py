@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from harness.cases import SMIB_IDENTIFICATION, Case
+from systems.cases import SMIB_IDENTIFICATION, Case
 from harness.suites.accuracy import accuracy
 from harness.suites.identification import identification, observations
 from harness.suites.latency import latency

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from harness import metrics
-from harness.cases import Case, standard_grid
-from harness.reference import OFF_TRAINING, reference, seed_reference
+from systems.cases import Case, standard_grid
+from systems.reference import OFF_TRAINING, reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
 

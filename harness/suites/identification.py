@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from harness import metrics
-from harness.cases import Case, Observations, standard_grid
-from harness.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
+from systems.cases import Case, Observations, standard_grid
+from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.cases import Case, standard_grid
+from systems.cases import Case, standard_grid
 from harness.runs import Settings
 from harness.timing import time_call
 from solvers.base import AbstractSolver

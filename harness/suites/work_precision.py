@@ -7,8 +7,8 @@ from dataclasses import replace
 
 from harness import metrics
 from harness.analysis import t1_column
-from harness.cases import Case, standard_grid
-from harness.reference import reference
+from systems.cases import Case, standard_grid
+from systems.reference import reference
 from harness.runs import Settings
 from harness.suites.latency import T1_S, queries
 from harness.timing import time_call

@@ -18,8 +18,8 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from harness.cases import Observations
-from harness.model import SwingSystem, smib_system
+from systems.cases import Observations
+from systems.model import SwingSystem, smib_system
 from solvers.base import AbstractSolver, FitReport, NotFittedError
 from solvers.identification import Estimate, gauss_newton_covariance
 from solvers.options import PositiveInt, StrictBool
@@ -82,7 +82,7 @@ class PinnSolver(AbstractSolver):
     """A physics-informed neural network u(t, P1) -> delta for the case's swing equation.
 
     `fit()` trains on the paper's data (initial and boundary points whose delta comes from the tight
-    reference `harness.reference.reference`, where the paper used MATLAB ode45) plus the physics
+    reference `systems.reference.reference`, where the paper used MATLAB ode45) plus the physics
     residual on collocation points (see `spec.PinnConfig` and `spec.forward_problem`); `solve`
     evaluates delta (rad) and omega = d delta/dt (rad/s, forward-mode autodiff of the same network,
     or the second output of a two-output network) on the trained domain; `identify` trains a

@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from harness.model import SwingSystem
+from systems.model import SwingSystem
 from solvers.pinn.common import Evaluator, PinnSolver, Trainer
 from solvers.pinn.network import Ops, delta_omega, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem

@@ -1,6 +1,6 @@
 """The PINN's network, derivatives and loss, written once over the backend's ops.
 
-Like `harness.model` takes the backend's `sin`, these functions take an `Ops` bundle: the
+Like `systems.model` takes the backend's `sin`, these functions take an `Ops` bundle: the
 elementwise functions and the functional autodiff transforms, which torch.func and JAX spell the
 same way (`jvp(f, primals, tangents)`, `vmap(f, in_dims)`, `jacrev(f)`). A backend supplies its
 `Ops` and compiles (jax.jit) or calls (torch) these functions; nothing here imports a framework.
@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from harness.model import SwingSystem, residual
+from systems.model import SwingSystem, residual
 from solvers.pinn.spec import Architecture, Problem
 
 __all__ = [
@@ -129,7 +129,7 @@ def data_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, columns
 def swing_residuals(outputs: Callable[[Any], tuple[Any, ...]], n_outputs: int, t: Any, p: Any, ops: Ops,
                     system: SwingSystem, m: Any, d: Any) -> Any:
     """Swing-equation residuals (p.u.) of any differentiable `outputs(t) -> (delta,)` or
-    `(delta, omega)` (n_outputs 1 or 2), shape S + (r,), from `harness.model.residual` with
+    `(delta, omega)` (n_outputs 1 or 2), shape S + (r,), from `systems.model.residual` with
     t-derivatives by (nested) forward-mode autodiff:
     one output: r = 1, f = m delta_tt + d delta_t + b sin(delta) - P1;
     two outputs: r = 2, f_omega = delta_t - omega (rad/s), f_delta = m omega_t + d omega + b sin(delta) - P1."""

@@ -25,7 +25,7 @@ from pydantic import model_validator
 from scipy.stats import qmc
 
 from harness.atomic import write_atomically
-from harness.cases import Case, Observations, standard_grid
+from systems.cases import Case, Observations, standard_grid
 from solvers.options import (
     NonNegativeInt,
     PositiveFloat,
@@ -67,7 +67,7 @@ class PinnConfig:
     outputs omega = omega0 + phi NN_2), otherwise the initial condition is learnt from data only.
     `dtype` "float32" or "float64" for the network and its derivatives.
     Training data of `fit`: `n_u` points drawn without replacement from the t = 0 line and the
-    P1 = p1_min / p1_max edges of the standard grid (values from `harness.reference.reference`),
+    P1 = p1_min / p1_max edges of the standard grid (values from `systems.reference.reference`),
     plus `n_f` Latin-hypercube collocation points (the data points are collocation points too).
     Loss = loss_scale * (MSE of the data + MSE of each residual) (Levenberg-Marquardt is invariant
     to the scale, and scipy's L-BFGS-B tests curvature pairs relatively: unlike torch.optim.LBFGS,
@@ -310,10 +310,10 @@ def latin_hypercube(case_t: tuple[float, float], p_range: tuple[float, float], n
 def forward_problem(config: PinnConfig, case: Case) -> Problem:
     """The training set of `fit`, as in the paper: `n_u` points drawn without replacement from the
     t = 0 line and the P1 = p1_min / p1_max edges of the standard 201 x 100 grid, with delta from
-    the tight reference `harness.reference.reference` (the paper used MATLAB ode45 there), and
+    the tight reference `systems.reference.reference` (the paper used MATLAB ode45 there), and
     `n_f` Latin-hypercube collocation points on [0, t_final] x [p1_min, p1_max] to which the data
     points are appended (as in the paper's code)."""
-    from harness.reference import reference
+    from systems.reference import reference
 
     t_grid, p_grid = standard_grid(case)
     edges = np.array([case.p1_min, case.p1_max])

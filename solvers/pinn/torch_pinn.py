@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import func as tfunc
 
-from harness.model import SwingSystem
+from systems.model import SwingSystem
 from solvers.pinn.common import Evaluator, PinnSolver, Trainer
 from solvers.pinn.network import Ops, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from harness.cases import CASES, Case, check_array
-from harness.model import accelerations, smib_system
+from systems.cases import CASES, Case, check_array
+from systems.model import rhs
 
 __all__ = ["OFF_TRAINING", "PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference",
            "seed_reference"]
@@ -25,9 +26,10 @@ OFF_TRAINING = "reference, off the training points"
 
 
 def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:
-    """delta (rad) and omega (rad/s) of `case`, shape (len(P1), len(t)), for 1-D t (s, any order,
-    >= 0) and P1 (p.u.): DOP853 at rtol = atol = 1e-12 (max error on the standard grid ~1e-11 rad).
-    Results are cached per (case, t, P1); the returned arrays are read-only."""
+    """delta (rad) and omega (rad/s) of every machine of `case`, shape (len(P1), len(t), n), for
+    1-D t (s, any order, >= 0) and P1 (p.u.): DOP853 at rtol = atol = 1e-12, one trajectory per
+    P1 (max error on the SMIB standard grid ~1e-11 rad). Results are cached per (case, t, P1); the
+    returned arrays are read-only."""
     t = check_array("t", t, nonnegative=True)
     P1 = check_array("P1", np.atleast_1d(P1))
     return _reference(case, t.tobytes(), P1.tobytes())
@@ -37,22 +39,19 @@ def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:
 def _reference(case: Case, t_bytes: bytes, p1_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
     t, P1 = np.frombuffer(t_bytes), np.frombuffer(p1_bytes)
     times, order = np.unique(t, return_inverse=True)
-    system = smib_system(case)
-    delta = np.empty((P1.size, times.size))
+    n = case.n
+    f, powers = rhs(case), case.powers(P1)
+    y0 = np.array(case.delta0 + case.omega0)
+    delta = np.empty((P1.size, times.size, n))
     omega = np.empty_like(delta)
-
-    def rhs(_t: float, y: np.ndarray, p1: float) -> list:
-        (acc,) = accelerations(system, [y[0]], [y[1]], [p1])
-        return [y[1], acc]
-
     for i, p1 in enumerate(P1):
         sol = solve_ivp(
-            rhs, (0.0, max(times[-1], 1e-300)), [case.delta0, case.omega0], method="DOP853",
-            t_eval=times, rtol=REFERENCE_TOL, atol=REFERENCE_TOL, args=(p1,),
+            f, (0.0, max(times[-1], 1e-300)), y0, method="DOP853",
+            t_eval=times, rtol=REFERENCE_TOL, atol=REFERENCE_TOL, args=(powers[i],),
         )
         if not sol.success:
             raise RuntimeError(f"reference failed at P1={p1!r}: {sol.message}")
-        delta[i], omega[i] = sol.y
+        delta[i], omega[i] = sol.y[:n].T, sol.y[n:].T
     delta, omega = delta[:, order], omega[:, order]
     delta.flags.writeable = omega.flags.writeable = False
     return delta, omega
@@ -60,11 +59,11 @@ def _reference(case: Case, t_bytes: bytes, p1_bytes: bytes) -> tuple[np.ndarray,
 
 def load_seed_reference(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The paper's MATLAB ode45 data (a .mat with keys t, x, usol): t (201,) s, P1 (100,) p.u.,
-    delta (100, 201) rad."""
+    delta (100, 201, 1) rad (one machine)."""
     from scipy.io import loadmat
 
     data = loadmat(path)
-    return data["t"].ravel(), data["x"].ravel(), data["usol"]
+    return data["t"].ravel(), data["x"].ravel(), data["usol"][:, :, None]
 
 
 SEED_DIR = Path(__file__).resolve().parents[1] / "data" / "seed-reference"
@@ -77,8 +76,7 @@ def seed_reference(case: Case) -> tuple[np.ndarray, np.ndarray, np.ndarray] | No
     the paper published none for it (compared by case parameters, not by name)."""
     for name, filename in SEED_FILES.items():
         paper_case = CASES[name]
-        same = all(getattr(case, f) == getattr(paper_case, f)
-                   for f in ("m", "d", "b", "delta0", "omega0", "t_final", "p1_min", "p1_max"))
+        same = dataclasses.replace(case, name=paper_case.name, source=paper_case.source) == paper_case
         if same and (SEED_DIR / filename).exists():
             return load_seed_reference(SEED_DIR / filename)
     return None

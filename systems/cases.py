@@ -1,0 +1,306 @@
+"""The paper's cases and the data types that describe a problem: pure data, no solver.
+
+Units: angles in rad, angular speeds in rad/s, times in s, powers and susceptances in p.u.
+Nothing here imports the rest of the project; solvers take a `Case`, suites take solvers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from numbers import Real
+
+import numpy as np
+
+__all__ = [
+    "CASES",
+    "NETWORK_CASES",
+    "SMIB_CASES",
+    "IDENTIFICATION_PAIRS",
+    "SMIB_IDENTIFICATION",
+    "SMIB_INFERENCE",
+    "Case",
+    "Observations",
+    "check_array",
+    "smib_case",
+    "standard_grid",
+]
+
+
+# numpy dtype kinds check_array takes: signed and unsigned integers, floats
+_NUMERIC_KINDS = frozenset("iuf")
+_KIND_NAMES = {"b": "booleans", "U": "strings", "S": "bytes", "c": "complex numbers", "O": "objects",
+               "M": "datetimes", "m": "timedeltas", "V": "raw bytes"}
+
+
+def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -> np.ndarray:
+    """Return `value` as a float64 array of `ndim` dimensions or raise a ValueError naming `name`.
+
+    Rejects non-numeric input, the wrong number of dimensions, empty arrays, NaN/inf and (with
+    `nonnegative`) negative entries: a bad input never becomes a silent wrong number.
+    Numeric means integers and floats (Python, numpy, or an object array of them): strings are
+    refused even when they spell a number ('0.12'), and so are booleans (True is not 1.0 s or
+    1.0 p.u.; the option schemas of `solvers.options` refuse them for numbers too), complex
+    numbers and None. A float64 array costs one dtype check more than `np.asarray`.
+    """
+    raw = value
+    if type(raw) is not np.ndarray:
+        try:
+            raw = np.asarray(value)
+        except (TypeError, ValueError) as exc:  # ragged nesting
+            raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    kind = raw.dtype.kind
+    if kind not in _NUMERIC_KINDS:
+        bad = kind != "O" or any(isinstance(x, (bool, np.bool_)) or not isinstance(x, Real) for x in raw.flat)
+        if bad:
+            raise ValueError(f"{name} must be numeric (integers or floats), got {_KIND_NAMES.get(kind, raw.dtype)}"
+                             f" ({_short(value)})")
+    try:
+        arr = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    if arr.ndim != ndim:
+        raise ValueError(f"{name} must be {ndim}-D, got shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} must not be empty")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} contains NaN or inf")
+    if nonnegative and (arr < 0).any():
+        raise ValueError(f"{name} must be >= 0, got min {arr.min()!r}")
+    return arr
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+Vector = tuple[float, ...]
+Matrix = tuple[tuple[float, ...], ...]
+
+
+def _vector(name: str, value, n: int | None = None) -> Vector:
+    arr = check_array(f"Case.{name}", np.atleast_1d(value))
+    if n is not None and arr.size != n:
+        raise ValueError(f"Case.{name} has {arr.size} entries, the case has {n} machines")
+    return tuple(float(x) for x in arr)
+
+
+def _matrix(name: str, value, n: int) -> Matrix:
+    arr = check_array(f"Case.{name}", value, ndim=2)
+    if arr.shape != (n, n):
+        raise ValueError(f"Case.{name} must be ({n}, {n}) for {n} machines, got shape {arr.shape}")
+    if not np.array_equal(arr, arr.T):
+        raise ValueError(f"Case.{name} must be symmetric")
+    return tuple(tuple(float(x) for x in row) for row in arr)
+
+
+def _boxes(name: str, value, n: int) -> tuple[tuple[float, float], ...]:
+    arr = check_array(f"Case.{name}", value, ndim=2)
+    if arr.shape != (n, 2) or not ((arr[:, 0] > 0) & (arr[:, 0] < arr[:, 1])).all():
+        raise ValueError(f"Case.{name} must be ({n}, 2) rows (low, high) with 0 < low < high, got {arr.tolist()}")
+    return tuple((float(lo), float(hi)) for lo, hi in arr)
+
+
+@dataclass(frozen=True)
+class Case:
+    """An N-machine classical swing system and its scenario: pure data.
+
+    Machine k (k = 0..n-1, "generator 1" is k = 0) obeys
+
+        m_k delta_k'' + d_k delta_k' + P_e,k(delta) - P_k = 0,
+        P_e,k = sum_j E_k E_j (G_kj cos(delta_k - delta_j) + B_kj sin(delta_k - delta_j))
+                + E_k V_inf (g_inf_k cos(delta_k) + b_inf_k sin(delta_k)),
+
+    the Kron-reduced network seen from the internal machine nodes (the paper's lossless Eq. 1 is
+    G = 0), plus an optional infinite bus: a machine of fixed angle 0 and voltage V_inf = 1 p.u.
+    whose coupling column is (g_inf, b_inf). The scenario: P = p_m with generator 1's entry replaced
+    by P1, for P1 in [p1_min, p1_max] p.u., from delta(0) = delta0, omega(0) = omega0, on
+    t in [0, t_final] s.
+
+    Units (system base): m (n,) p.u. s^2/rad (M = 2 H S_rated / (omega_s S_base)), d (n,) p.u. s/rad,
+    E (n,) p.u., G, B (n, n) symmetric p.u., g_inf, b_inf (n,) p.u., p_m (n,) p.u., delta0 (n,) rad,
+    omega0 (n,) rad/s (speed deviation, electrical), t_final s. m_box, d_box (n, 2): each
+    machine's (low, high) p.u., the box identification searches (the prior of the problem).
+    Sequences are stored as tuples of floats so that a case is hashable and compares by value.
+
+    The paper's SMIB is n = 1, E = (1,), G = B = ((0,),), g_inf = (0,), b_inf = (b,).
+    """
+
+    name: str
+    m: Vector
+    d: Vector
+    delta0: Vector
+    omega0: Vector
+    p_m: Vector
+    E: Vector
+    G: Matrix
+    B: Matrix
+    g_inf: Vector
+    b_inf: Vector
+    t_final: float
+    p1_min: float
+    p1_max: float
+    m_box: tuple[tuple[float, float], ...]
+    d_box: tuple[tuple[float, float], ...]
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(_vector("m", self.m))
+        if n == 0:
+            raise ValueError("Case.m must not be empty")
+        for name in ("m", "d", "delta0", "omega0", "p_m", "E", "g_inf", "b_inf"):
+            object.__setattr__(self, name, _vector(name, getattr(self, name), n))
+        for name in ("G", "B"):
+            object.__setattr__(self, name, _matrix(name, getattr(self, name), n))
+        for name in ("m_box", "d_box"):
+            object.__setattr__(self, name, _boxes(name, getattr(self, name), n))
+        for name in ("t_final", "p1_min", "p1_max"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
+                raise ValueError(f"Case.{name} must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        for name in ("m", "d", "E"):
+            if min(getattr(self, name)) <= 0:
+                raise ValueError(f"Case.{name} must be > 0, got {getattr(self, name)!r}")
+        if self.t_final <= 0:
+            raise ValueError(f"Case.t_final must be > 0, got {self.t_final!r}")
+        if not self.p1_min <= self.p1_max:
+            raise ValueError(f"Case.p1_min must be <= p1_max, got {self.p1_min!r} > {self.p1_max!r}")
+
+    @property
+    def n(self) -> int:
+        """Number of machines (the infinite bus not counted)."""
+        return len(self.m)
+
+    @property
+    def has_infinite_bus(self) -> bool:
+        """Whether some machine is coupled to the fixed-angle infinite bus (then absolute angles are
+        referenced to it; without one they drift together, and angles are compared to the centre of
+        inertia)."""
+        return any(self.g_inf) or any(self.b_inf)
+
+    def with_params(self, m, d, name: str | None = None) -> Case:
+        """The same case with other inertias `m` and dampings `d`: (n,) sequences, or numbers that
+        set every machine's."""
+        m = tuple(np.broadcast_to(np.asarray(m, float), (self.n,)).tolist())
+        d = tuple(np.broadcast_to(np.asarray(d, float), (self.n,)).tolist())
+        label = ",".join(f"{x:g}" for x in m), ",".join(f"{x:g}" for x in d)
+        return dataclasses.replace(self, m=m, d=d, name=name or f"{self.name}[m={label[0]},d={label[1]}]")
+
+    def powers(self, P1: np.ndarray) -> np.ndarray:
+        """Mechanical powers (len(P1), n) p.u.: p_m with generator 1's replaced by each P1."""
+        P = np.tile(np.asarray(self.p_m, np.float64), (np.size(P1), 1))
+        P[:, 0] = P1
+        return P
+
+
+def smib_case(name: str, m: float, d: float, b: float, delta0: float, omega0: float, t_final: float,
+              p1_min: float, p1_max: float, m_box=(0.02, 2.0), d_box=(0.005, 1.0), source: str = "") -> Case:
+    """A single-machine infinite-bus case: m delta'' + d delta' + b sin(delta) - P1 = 0 (b = B12 V1 V2,
+    p.u.). p_m is the middle of the P1 range (it is replaced by P1 in every trajectory)."""
+    return Case(
+        name=name, m=(m,), d=(d,), delta0=(delta0,), omega0=(omega0,), p_m=((p1_min + p1_max) / 2,),
+        E=(1.0,), G=((0.0,),), B=((0.0,),), g_inf=(0.0,), b_inf=(b,), t_final=t_final,
+        p1_min=p1_min, p1_max=p1_max, m_box=(m_box,), d_box=(d_box,), source=source,
+    )
+
+
+@dataclass(frozen=True)
+class Observations:
+    """Scattered samples of a trajectory family, for identification.
+
+    t (n_s,) s and P1 (n_s,) p.u.: 1-D float64 arrays of one length n_s; delta (n_s, n) rad and
+    optionally omega (n_s, n) rad/s, one column per machine: row i is every machine's state at
+    time t[i] for P1[i]. A 1-D delta or omega is refused (one shape rule, N = 1 included).
+    """
+
+    t: np.ndarray
+    P1: np.ndarray
+    delta: np.ndarray
+    omega: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "t", check_array("Observations.t", self.t, nonnegative=True))
+        object.__setattr__(self, "P1", check_array("Observations.P1", self.P1))
+        object.__setattr__(self, "delta", check_array("Observations.delta", self.delta, ndim=2))
+        if self.omega is not None:
+            object.__setattr__(self, "omega", check_array("Observations.omega", self.omega, ndim=2))
+        n = self.t.size
+        for name in ("P1", "delta", "omega"):
+            value = getattr(self, name)
+            if value is not None and value.shape[0] != n:
+                raise ValueError(
+                    f"Observations.{name} has {value.shape[0]} samples, Observations.t has {n}"
+                )
+        if self.omega is not None and self.omega.shape != self.delta.shape:
+            raise ValueError(f"Observations.omega has shape {self.omega.shape}, Observations.delta "
+                             f"{self.delta.shape}: the same machines must be observed")
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    @property
+    def n_machines(self) -> int:
+        """Machines observed (columns of delta)."""
+        return self.delta.shape[1]
+
+    def check_machines(self, case: Case) -> None:
+        """Raise a ValueError naming `obs.delta` unless it has one column per machine of `case`."""
+        if self.n_machines != case.n:
+            raise ValueError(f"obs.delta has {self.n_machines} machine column(s), case {case.name!r} "
+                             f"has {case.n} machines")
+
+
+# The paper's two SMIB problems (Misyris, Venzke & Chatzivasileiadis 2020, Sec. IV).
+SMIB_INFERENCE = smib_case(
+    name="smib-inference", m=0.4, d=0.15, b=0.2, delta0=0.1, omega0=0.1,
+    t_final=20.0, p1_min=0.08, p1_max=0.18, source="Misyris et al. 2020, Sec. IV-A",
+)
+SMIB_IDENTIFICATION = smib_case(
+    name="smib-identification", m=0.25, d=0.15, b=0.2, delta0=0.1, omega0=0.1,
+    t_final=20.0, p1_min=0.10, p1_max=0.18, source="Misyris et al. 2020, Sec. IV-B",
+)
+SMIB_CASES = (SMIB_INFERENCE, SMIB_IDENTIFICATION)
+# Multi-machine cases are built from network data by `systems.grids` on first use (a power flow).
+NETWORK_CASES = ("wscc9", "kundur4", "ieee39")
+
+
+class _Cases(Mapping):
+    """name -> Case; the network cases are built (pandapower, a power flow) on first access."""
+
+    def __init__(self) -> None:
+        self._built: dict[str, Case] = {case.name: case for case in SMIB_CASES}
+
+    def __getitem__(self, name: str) -> Case:
+        if name not in self._built:
+            if name not in NETWORK_CASES:
+                raise KeyError(name)
+            from systems import grids
+
+            self._built[name] = getattr(grids, name)()
+        return self._built[name]
+
+    def __iter__(self):
+        return iter([case.name for case in SMIB_CASES] + list(NETWORK_CASES))
+
+    def __len__(self) -> int:
+        return len(SMIB_CASES) + len(NETWORK_CASES)
+
+
+CASES: Mapping[str, Case] = _Cases()
+
+# The paper identifies 10 (m, d) pairs in m in [0.1, 0.4], d in [0.05, 0.15] but does not list them.
+# Ours: m and d both evenly spaced over their ranges, paired in order (m_i, d_i), i = 0..9, so the
+# pairs run from light and weakly damped (0.1, 0.05) to heavy and strongly damped (0.4, 0.15).
+IDENTIFICATION_PAIRS: tuple[tuple[float, float], ...] = tuple(
+    (round(float(m), 10), round(float(d), 10))
+    for m, d in zip(np.linspace(0.1, 0.4, 10), np.linspace(0.05, 0.15, 10))
+)
+
+
+def standard_grid(case: Case, n_p1: int = 100, n_t: int = 201) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's query grid: `n_t` evenly spaced times on [0, t_final] s (step 0.1 s for the
+    defaults) and `n_p1` evenly spaced P1 values on [p1_min, p1_max]. Returns (t, P1)."""
+    return np.linspace(0.0, case.t_final, n_t), np.linspace(case.p1_min, case.p1_max, n_p1)
