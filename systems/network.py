@@ -16,13 +16,17 @@ internal_datastructure tutorial). Machine order is the caller's `machine_buses` 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from systems.cases import Case, check_array
 
-__all__ = ["BOX_FACTOR", "DAMPING_PER_INERTIA", "P1_SPREAD", "ClassicalModel", "classical_model",
-           "electrical_power", "kron_reduce", "network_case"]
+if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
+    from pandapower.auxiliary import pandapowerNet
+
+__all__ = ["BOX_FACTOR", "DAMPING_PER_INERTIA", "P1_SPREAD", "ClassicalModel", "bus_indices",
+           "classical_model", "electrical_power", "kron_reduce", "network_case"]
 
 # No source gives damping for these classical models. Ours: d_k = 0.5 m_k (1/s), so each
 # electromechanical mode decays as exp(-t d/(2m)) = exp(-t/4 s): visible over a 10 s horizon.
@@ -77,5 +81,162 @@ def kron_reduce(Y: np.ndarray, keep) -> np.ndarray:
     elim = np.setdiff1d(np.arange(Y.shape[0]), keep)
     reduced = Y[np.ix_(keep, keep)]
     if elim.size:
-        reduced = reduced - Y[np.ix_(keep, elim)] @ np.linalg.solve(Y[np.ix_(elim, elim)], Y[np.ix_(elim, keep)])
+        solved = np.linalg.solve(Y[np.ix_(elim, elim)], Y[np.ix_(elim, keep)])
+        reduced = reduced - Y[np.ix_(keep, elim)] @ solved
     return reduced
+
+
+def bus_indices(net: pandapowerNet, names) -> list[int]:
+    """pandapower bus indices of the buses whose `name` is each of `names` (the source's bus numbers)."""
+    index = {int(name): int(idx) for idx, name in zip(net.bus.index, net.bus.name) if name is not None}
+    missing = [name for name in names if int(name) not in index]
+    if missing:
+        raise ValueError(f"names: net has no bus named {missing}")
+    return [index[int(name)] for name in names]
+
+
+def _per_machine(name: str, value, n: int) -> np.ndarray:
+    """`value` as an (n,) positive float array (a number sets every entry) or a ValueError."""
+    arr = check_array(name, np.atleast_1d(value))
+    if arr.size == 1 and n > 1:
+        arr = np.full(n, arr[0])
+    if arr.size != n:
+        raise ValueError(f"{name} has {arr.size} entries, machine_buses has {n} machine(s)")
+    if (arr <= 0).any():
+        raise ValueError(f"{name} must be > 0, got {arr.tolist()}")
+    return arr
+
+
+def _positive(name: str, value) -> float:
+    """`value` as a positive float or a ValueError naming `name`."""
+    arr = check_array(name, value, ndim=0)
+    if arr <= 0:
+        raise ValueError(f"{name} must be > 0, got {float(arr)!r}")
+    return float(arr)
+
+
+def _machine_elements(net: pandapowerNet, buses: list[int]) -> list[tuple[str, int]]:
+    """The one in-service gen or ext_grid at each bus; every in-service one must be listed."""
+    found: dict[int, list[tuple[str, int]]] = {}
+    for table in ("ext_grid", "gen"):
+        frame = net[table]
+        for idx, bus in zip(frame.index[frame.in_service.values], frame.bus.values[frame.in_service.values]):
+            found.setdefault(int(bus), []).append((table, int(idx)))
+    missing = sorted(set(found) - set(buses))
+    if missing:
+        raise ValueError(f"machine_buses leaves out the generator bus(es) {missing}: every in-service "
+                         "gen and ext_grid is a machine")
+    elements = []
+    for bus in buses:
+        at_bus = found.get(bus, [])
+        if len(at_bus) != 1:
+            raise ValueError(f"machine_buses: bus {bus} has {len(at_bus)} in-service gen/ext_grid elements, "
+                             "a machine bus needs exactly one")
+        elements.append(at_bus[0])
+    return elements
+
+
+def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float, *, machine_mva=None,
+                    damping_per_inertia: float = DAMPING_PER_INERTIA, tol: float = 1e-9,
+                    balance_tol: float = 1e-6) -> ClassicalModel:
+    """The classical model of a solved pandapower `net` (run `pandapower.runpp` first).
+
+    machine_buses (n,): pandapower bus indices, one per machine, in the machine order wanted (each bus
+    holds exactly one in-service gen or ext_grid, and every one is listed: the slack is a machine).
+    H (n,) s and xd_prime (n,) p.u. on machine_mva (n,) MVA (None: the system base net.sn_mva); a
+    number sets every machine's. f_hz: the system frequency (Hz), omega_s = 2 pi f_hz.
+    M_k = 2 H_k S_k / (omega_s S_base); d_k = damping_per_inertia m_k. Loads and static generators
+    become constant admittances conj(S)/|V|^2 at their solved voltages; shunts and branches are in Ybus.
+    E_k e^{j delta_k} = V_k + j x'd_k conj(S_k / V_k) with S_k the machine's solved P + jQ.
+    Raises ValueError if the power flow does not balance to `balance_tol` p.u. with these elements
+    (an unsolved net, or an element this model lacks: ward, storage, ...), or if p_m = P_e(delta0)
+    differs from the power flow's machine P by more than `tol` p.u.
+    """
+    ppc = getattr(net, "_ppc", None) or {}
+    if not getattr(net, "converged", False) or "Ybus" not in ppc.get("internal", {}):
+        raise ValueError("net must hold a converged AC power flow (run pandapower.runpp(net) first)")
+    buses = [int(b) for b in np.atleast_1d(np.asarray(machine_buses)).tolist()]
+    if not buses or len(set(buses)) != len(buses):
+        raise ValueError(f"machine_buses must be distinct bus indices, got {buses}")
+    unknown = sorted(set(buses) - {int(b) for b in net.bus.index})
+    if unknown:
+        raise ValueError(f"machine_buses names bus(es) {unknown} that net does not have")
+    n = len(buses)
+    H = _per_machine("H", H, n)
+    xd_prime = _per_machine("xd_prime", xd_prime, n)
+    base = float(net.sn_mva)
+    rating = _per_machine("machine_mva", base if machine_mva is None else machine_mva, n)
+    f_hz = _positive("f_hz", f_hz)
+    damping_per_inertia = _positive("damping_per_inertia", damping_per_inertia)
+    elements = _machine_elements(net, buses)
+
+    # Network in pandapower's internal (ppci) bus order, p.u. on `base`.
+    Ybus = ppc["internal"]["Ybus"].toarray()
+    V = np.asarray(ppc["internal"]["V"])
+    lookup = net._pd2ppc_lookups["bus"]
+    nb = Ybus.shape[0]
+    s_flow = np.array([complex(net[f"res_{t}"].at[i, "p_mw"], net[f"res_{t}"].at[i, "q_mvar"])
+                       for t, i in elements]) / base
+    at = lookup[np.asarray(buses)]
+    if (at >= nb).any():
+        raise ValueError(f"machine_buses: bus(es) {np.asarray(buses)[at >= nb].tolist()} are out of service")
+    s_load = np.zeros(nb, complex)
+    for table, sign in (("load", 1.0), ("sgen", -1.0)):
+        on = net[table].in_service.values
+        node = lookup[net[table].bus.values[on]]
+        res = net[f"res_{table}"].loc[net[table].index[on]]
+        s_elem = sign * (res.p_mw.values + 1j * res.q_mvar.values) / base
+        np.add.at(s_load, node[node < nb], s_elem[node < nb])  # none on out-of-service buses
+    # Machine power = its bus's injection V conj(Ybus V) plus the bus's load: exact for the solved V
+    # (pandapower's reported gen Q can be off by ~1e-9 p.u.); checked against the reported P + jQ.
+    s_free = V * np.conj(Ybus @ V) + s_load
+    s_gen = s_free[at]
+    s_free[at] -= s_flow
+    mismatch = np.abs(s_free).max()
+    if mismatch > balance_tol:
+        raise ValueError(f"net: the power flow does not balance with its machines and loads (mismatch "
+                         f"{mismatch:.3g} p.u. > {balance_tol:g}): unsolved, or an element this model lacks")
+
+    # Augmented network: internal machine nodes nb..nb+n-1 behind j x'd (system base).
+    y = 1.0 / (1j * xd_prime * base / rating)
+    Y = np.zeros((nb + n, nb + n), complex)
+    Y[:nb, :nb] = Ybus + np.diag(np.conj(s_load) / np.abs(V) ** 2)
+    k = np.arange(nb, nb + n)
+    np.add.at(Y, (at, at), y)
+    Y[k, k] = y
+    Y[at, k] = Y[k, at] = -y
+    Y_red = kron_reduce(Y, k)
+    asym = np.abs(Y_red - Y_red.T).max() / np.abs(Y_red).max()
+    if asym > 1e-10:
+        raise ValueError(f"net: the reduced admittance is not symmetric (relative {asym:.3g}): phase "
+                         "shifters are not supported")
+    Y_red = (Y_red + Y_red.T) / 2  # exactly symmetric, as Case requires
+
+    emf = V[at] + 1j * xd_prime * base / rating * np.conj(s_gen / V[at])
+    E, delta0 = np.abs(emf), np.angle(emf)
+    G, B = Y_red.real.copy(), Y_red.imag.copy()
+    p_m = electrical_power(delta0, E, G, B)
+    err = np.abs(p_m - s_flow.real).max()
+    if err > tol:
+        raise ValueError(f"net: P_e(delta0) differs from the power-flow P by {err:.3g} p.u. > tol {tol:g}")
+    m = 2.0 * H * rating / (2.0 * np.pi * f_hz * base)
+    return ClassicalModel(buses=tuple(buses), elements=tuple(elements), m=m, d=damping_per_inertia * m,
+                          E=E, delta0=delta0, p_m=p_m, p_flow=s_flow.real.copy(), G=G, B=B,
+                          base_mva=base, f_hz=f_hz)
+
+
+def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread: float = P1_SPREAD,
+                 box_factor: float = BOX_FACTOR, source: str = "") -> Case:
+    """The `Case` of `model`: at rest at its equilibrium (delta0, omega0 = 0), no infinite bus,
+    P1 in generator 1's p_m[0] (1 -+ p1_spread), boxes (x / box_factor, box_factor x) for m and d."""
+    if not (0 <= p1_spread < 1):
+        raise ValueError(f"p1_spread must be in [0, 1), got {p1_spread!r}")
+    if not box_factor > 1:
+        raise ValueError(f"box_factor must be > 1, got {box_factor!r}")
+    p1 = sorted((model.p_m[0] * (1 - p1_spread), model.p_m[0] * (1 + p1_spread)))
+    n = model.m.size
+    return Case(name=name, m=model.m, d=model.d, delta0=model.delta0, omega0=np.zeros(n), p_m=model.p_m,
+                E=model.E, G=model.G, B=model.B, g_inf=np.zeros(n), b_inf=np.zeros(n), t_final=t_final,
+                p1_min=p1[0], p1_max=p1[1],
+                m_box=np.column_stack([model.m / box_factor, model.m * box_factor]),
+                d_box=np.column_stack([model.d / box_factor, model.d * box_factor]), source=source)
