@@ -1,27 +1,29 @@
-"""diffrax's explicit Runge-Kutta solvers under jax.jit (CPU, float64), all P1 in one compiled call."""
+"""diffrax's explicit Runge-Kutta solvers under jax.jit (CPU, float64) on the n-machine swing
+equation (`systems.model.accelerations`), all P1 in one compiled call."""
 
 from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, NamedTuple
 
 import diffrax
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from systems.cases import Observations
-from systems.model import SwingSystem, accelerations, smib_system
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     ObservationLayout,
     ToleranceOptions,
     identify_least_squares,
+    search_boxes,
 )
 from solvers.options import PositiveFloat, PositiveInt
 from solvers.pinn.jax_pinn import configure_threads
+from systems.cases import Case, Observations
+from systems.model import Coupling, accelerations, coupling
 
 __all__ = ["DiffraxODE"]
 
@@ -29,7 +31,6 @@ METHODS = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.D
 # Sizes of t and P1 compiled as they are (the latency suite's queries); any other size is padded up
 # to the next of these or of the powers of two, so arbitrary queries compile a few shapes, not one each.
 EXACT_SIZES = (1, 10, 100, 201, 1000, 10000)
-GRID_T = np.linspace(0.0, 20.0, 201)
 
 
 def bucket(n: int) -> int:
@@ -42,31 +43,69 @@ def _pad(x: np.ndarray, size: int) -> np.ndarray:
     return x if x.size == size else np.concatenate([x, np.full(size - x.size, x[-1])])
 
 
-def _vector_field(system: SwingSystem):
+class Structure(NamedTuple):
+    """What the compiled code of a case depends on besides the traced m, d, p_m and controls: the
+    coupling coefficients (`systems.model.Coupling` as nested tuples, p.u.) and the initial state
+    y0 = [delta0 (n) rad, omega0 (n) rad/s]. Hashable, so cases that differ only in m, d or p_m
+    (identification's trial cases, `Case.with_params`) share one compilation."""
+
+    C: tuple[tuple[float, ...], ...]
+    S: tuple[tuple[float, ...], ...]
+    c_inf: tuple[float, ...]
+    s_inf: tuple[float, ...]
+    y0: tuple[float, ...]
+
+    @classmethod
+    def of(cls, case: Case) -> Structure:
+        k = coupling(case)
+        return cls(tuple(map(tuple, k.C.tolist())), tuple(map(tuple, k.S.tolist())), tuple(k.c_inf.tolist()),
+                   tuple(k.s_inf.tolist()), case.delta0 + case.omega0)
+
+    @property
+    def n(self) -> int:
+        return len(self.c_inf)
+
+
+def _machines_first(M: jax.Array, v: jax.Array) -> jax.Array:
+    """M v for v of shape (n, ...): machines on the first axis, the batch after them."""
+    return jnp.tensordot(M, v, axes=1)
+
+
+def _vector_field(structure: Structure):
     """f(t, y, (P, m, d)) of the n-machine swing equation; y (2n, ...) = [delta_1..n, omega_1..n]
-    (rad, rad/s), P (n, ...) p.u., m and d (n,): the matrix form of `systems.model.accelerations`."""
-    n = system.n
+    (rad, rad/s), P (n, ...) p.u., m and d (n,) p.u.: `systems.model.accelerations` with machines
+    on the FIRST axis (the stacked batch of P1 trails it), so a stacked solve is one (2n, n_p) state."""
+    n = structure.n
+    # numpy float64 constants, made jax arrays when traced (under jax.enable_x64: converted here,
+    # outside it, they would become float32)
+    C, S, c_inf, s_inf = (np.asarray(x, np.float64) for x in structure[:4])
 
     def field(t, y, args):
         P, m, d = args
-        acc = accelerations(system, list(y[:n]), list(y[n:]), list(P), sin=jnp.sin, m=list(m), d=list(d))
-        return jnp.concatenate([y[n:], jnp.stack(acc)])
+        column = (n,) + (1,) * (y.ndim - 1)  # (n,) coefficients broadcast against (n, ...) states
+        k = Coupling(C, S, c_inf.reshape(column), s_inf.reshape(column))
+        acc = accelerations(k, m.reshape(column), d.reshape(column), y[:n], y[n:], P,
+                            sin=jnp.sin, cos=jnp.cos, matvec=_machines_first)
+        return jnp.concatenate([y[n:], acc])
 
     return field
 
 
 @functools.lru_cache(maxsize=16)
-def _compiled(system: SwingSystem, method: str, batch: str, adaptive: bool, max_steps: int):
-    """Jitted (values, sensitivities) for one system and solver. Tolerances and step are arguments,
-    not constants, so a tolerance sweep (or another config) reuses the compiled code.
+def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max_steps: int):
+    """Jitted (values, sensitivities) for one system and solver. Tolerances, step, m, d and p_m are
+    arguments, not constants, so a tolerance sweep (or another config, or a trial (m, d)) reuses the
+    compiled code.
 
-    values(m (n,), d (n,), rtol, atol, dt, t (n_t,) sorted, P1 (n_p,)) -> (y (2n, n_p, n_t), ok (n_p,));
-    sensitivities(m, d, ...) for scalar m, d (every machine's) -> (y, ok, dy/d(m, d) (2n, n_p, n_t, 2)).
+    values(m (n,), d (n,), p_m (n,), rtol, atol, dt, t (n_t,) sorted, P1 (n_p,))
+        -> (y (n_p, n_t, 2n) = [delta_1..n, omega_1..n], ok (n_p,));
+    sensitivities(m (n,), d (n,), ...) -> (y, ok, dy/d(m, d) (n_p, n_t, 2n, 2n), columns m_1..n, d_1..n).
+    Mechanical powers as `Case.powers`: generator 1 (index 0) gets P1, the others p_m.
     """
-    n = system.n
-    term = diffrax.ODETerm(_vector_field(system))
+    n = structure.n
+    term = diffrax.ODETerm(_vector_field(structure))
     solver = METHODS[method]()
-    y0_one = np.array(system.delta0 + system.omega0)
+    y0_one = np.array(structure.y0)
 
     def solve(m, d, rtol, atol, dt, t, P):  # P (n, ...): one trajectory, or (n, n_p) stacked
         y0 = jnp.broadcast_to(y0_one.reshape((2 * n,) + (1,) * (P.ndim - 1)), (2 * n,) + P.shape[1:])
@@ -78,24 +117,25 @@ def _compiled(system: SwingSystem, method: str, batch: str, adaptive: bool, max_
         )
         return sol.ys, sol.result == diffrax.RESULTS.successful  # ys (n_t, 2n, ...)
 
-    def values(m, d, rtol, atol, dt, t, P1):
-        powers = jnp.broadcast_to(P1, (n, P1.size))  # every machine's mechanical power is P1
+    def values(m, d, p_m, rtol, atol, dt, t, P1):
+        # (n, n_p): row 0 is P1, row k the constant p_m[k] (Case.powers, machines first)
+        powers = jnp.concatenate([P1[None, :], jnp.broadcast_to(p_m[1:, None], (n - 1, P1.size))])
         if batch == "stacked":
             ys, ok = solve(m, d, rtol, atol, dt, t, powers)
-            y = jnp.moveaxis(ys, 0, -1)
+            y = jnp.transpose(ys, (2, 0, 1))  # (n_t, 2n, n_p) -> (n_p, n_t, 2n)
         else:
-            ys, ok = jax.vmap(lambda p: solve(m, d, rtol, atol, dt, t, p), in_axes=1)(powers)
-            y = jnp.moveaxis(ys, 2, 0)
-        ok = ok & jnp.all(jnp.isfinite(y), axis=(0, 2))
+            y, ok = jax.vmap(lambda p: solve(m, d, rtol, atol, dt, t, p), in_axes=1)(powers)  # (n_p, n_t, 2n)
+        ok = ok & jnp.all(jnp.isfinite(y), axis=(1, 2))
         return y, ok
 
-    def of_md(md, rtol, atol, dt, t, P1):
-        y, ok = values(jnp.full(n, md[0]), jnp.full(n, md[1]), rtol, atol, dt, t, P1)
+    def of_md(md, p_m, rtol, atol, dt, t, P1):
+        y, ok = values(md[:n], md[n:], p_m, rtol, atol, dt, t, P1)
         return y, (y, ok)
 
-    def sensitivities(m, d, rtol, atol, dt, t, P1):
-        jac, (y, ok) = jax.jacfwd(of_md, has_aux=True)(jnp.stack([m, d]), rtol, atol, dt, t, P1)
-        return y, ok & jnp.all(jnp.isfinite(jac), axis=(0, 2, 3)), jac
+    def sensitivities(m, d, p_m, rtol, atol, dt, t, P1):
+        # forward mode: 2n tangents through the solver (diffrax.ForwardMode), one per parameter
+        jac, (y, ok) = jax.jacfwd(of_md, has_aux=True)(jnp.concatenate([m, d]), p_m, rtol, atol, dt, t, P1)
+        return y, ok & jnp.all(jnp.isfinite(jac), axis=(1, 2, 3)), jac
 
     return jax.jit(values), jax.jit(sensitivities)
 
@@ -114,15 +154,20 @@ class DiffraxOptions(ToleranceOptions):
 class DiffraxODE(AbstractSolver):
     """diffrax Tsit5 / Dopri5 / Dopri8 with PID step-size control (or a constant step), jitted, float64.
 
+    The state is [delta_1..n, omega_1..n] (rad, rad/s) with the machines on the first axis inside
+    the compiled code; queries return the contract's (len(P1), len(t), n) arrays. Generator 1's
+    mechanical power is P1, the others' the case's p_m (`Case.powers`).
+
     Options: method ("dopri8", "dopri5", "tsit5"); rtol, atol (defaults 1e-3, 1e-6: ode45's; PID
     control on the RMS norm of the whole state); dt (None: adaptive; a step in s: constant step,
     rtol and atol unused); batch: "stacked" (the default: one system of 2 * len(P1) states, one step
     size for all) or "vmap" (jax.vmap of one-trajectory solves, each with its own steps; the batched
     while loop runs until the slowest finishes and masks the others); max_steps (a solve that
-    needs more fails with SolveError); m_bounds, d_bounds (p.u.), the search box of `identify`;
-    threads: XLA's CPU threads (process-wide, applied if XLA has not started yet).
+    needs more fails with SolveError); m_bounds, d_bounds (p.u.), the search box of `identify`
+    (default: the case's per-machine boxes); threads: XLA's CPU threads (process-wide, applied if
+    XLA has not started yet).
 
-    Measured on 2 cores, 100 x 201 grid, Dopri8, jitted: stacked 0.92 ms at rtol 1e-6 (rel. L2
+    Measured on 2 cores, SMIB, 100 x 201 grid, Dopri8, jitted: stacked 0.92 ms at rtol 1e-6 (rel. L2
     3.3e-7), vmap 3.2 ms (4.5e-7); vmap is 3-4x slower at every tolerance and method tried, as
     the few steps (~20) are cheap next to the batched loop's masking and per-trajectory saving.
     Dopri8 is the default method: at rtol 1e-6 it equals Dopri5 and Tsit5 in time (~0.9 ms, most
@@ -132,9 +177,11 @@ class DiffraxODE(AbstractSolver):
     Output times: SaveAt(ts=sorted unique t); t and P1 are padded (repeating the last value) to
     the compiled sizes of `bucket` (the latency suite's sizes exactly, else the next power of two),
     and `fit` compiles the benchmark's shapes (201 times x 1, 10, 100, 1000, 10000 P1; one time x
-    one P1). The tolerances and dt are traced arguments: every config shares the compiled code.
-    `identify` differentiates through the solver (jax.jacfwd, diffrax.ForwardMode()) for the
-    Jacobian of the least squares, compiled once per padded observation layout.
+    one P1, on [0, t_final]). The tolerances, dt, m, d and p_m are traced arguments: every config
+    and every case of one `Structure` (coupling and initial state) shares the compiled code.
+    `identify` estimates every machine's m and d, differentiating through the solver (jax.jacfwd
+    over the 2n parameters, diffrax.ForwardMode()) for the Jacobian of the least squares, compiled
+    once per padded observation layout.
     """
 
     name: ClassVar[str] = "diffrax"
@@ -152,9 +199,9 @@ class DiffraxODE(AbstractSolver):
             return [{"dt": h} for h in (1.0, 0.5, 0.2, 0.1, 0.05, 0.02)]
         return super().precision_sweep(rtols)
 
-    def _functions(self, system: SwingSystem):
+    def _functions(self, structure: Structure):
         o = self.options
-        return _compiled(system, o["method"], o["batch"], o["dt"] is None, int(o["max_steps"]))
+        return _compiled(structure, o["method"], o["batch"], o["dt"] is None, int(o["max_steps"]))
 
     def _controls(self) -> tuple[float, float, float]:
         o = self.options
@@ -162,33 +209,38 @@ class DiffraxODE(AbstractSolver):
 
     def _fit(self) -> FitReport:
         note = configure_threads(self.options["threads"])
-        self.system = smib_system(self.case)
-        self._values, _ = self._functions(self.system)
+        self._values, _ = self._functions(Structure.of(self.case))
+        case = self.case
         with jax.enable_x64(True):  # device arrays once: converting them cost ~20 us of every query
-            self._fixed = tuple(jnp.asarray(x, jnp.float64) for x in (
-                self.system.m, self.system.d, *self._controls()))
-        p1 = 0.5 * (self.case.p1_min + self.case.p1_max)
+            self._fixed = tuple(jnp.asarray(x, jnp.float64)
+                                for x in (case.m, case.d, case.p_m, *self._controls()))
+        p1 = 0.5 * (case.p1_min + case.p1_max)
+        grid = np.linspace(0.0, case.t_final, 201)
         with jax.enable_x64(True):
             for n_t, n_p in self.FIT_SHAPES:  # compile and run once; a failure shows in solve
-                t = GRID_T[:n_t] if n_t > 1 else GRID_T[-1:]
-                self._values(*self._fixed, t, np.full(n_p, p1))[0].block_until_ready()
+                t = grid[:n_t] if n_t > 1 else grid[-1:]
+                # padded as `_run` pads a query of this size, so that the query finds this compilation
+                y, _ = self._values(*self._fixed, _pad(t, bucket(n_t)), np.full(bucket(n_p), p1))
+                y.block_until_ready()
         return FitReport(seconds=0.0, message=note)
 
     def _run(self, times: np.ndarray, P1: np.ndarray) -> np.ndarray:
-        """States (2n, len(P1), len(times)) at sorted unique `times`; SolveError naming a failed P1."""
+        """States (len(P1), len(times), 2n) = [delta_1..n, omega_1..n] (rad, rad/s) at sorted unique
+        `times` (s); SolveError naming a failed P1."""
         n_t, n_p = times.size, P1.size
         with jax.enable_x64(True):
             y, ok = self._values(*self._fixed, _pad(times, bucket(n_t)), _pad(P1, bucket(n_p)))
         ok = np.asarray(ok)[:n_p]
         if not ok.all():
-            self._fail(P1, ok)
-        return np.asarray(y)[:, :n_p, :n_t]
+            self._fail(times[-1], P1, ok)
+        return np.asarray(y)[:n_p, :n_t]
 
-    def _fail(self, P1: np.ndarray, ok: np.ndarray) -> None:
-        """Raise SolveError naming the first failed P1 (stacked: the first that fails alone)."""
+    def _fail(self, t_end: float, P1: np.ndarray, ok: np.ndarray) -> None:
+        """Raise SolveError naming the first failed P1 (stacked: the first that fails alone on
+        [0, t_end] s, the query's span)."""
         if self.options["batch"] == "stacked" and P1.size > 1:
             for p1 in P1:
-                self._run(GRID_T[-1:], np.array([p1]))  # raises for a P1 that fails on its own
+                self._run(np.array([t_end]), np.array([p1]))  # raises for a P1 that fails on its own
             where = f"one of P1 in [{P1.min():g}, {P1.max():g}] (the stacked solve)"
         else:
             where = f"P1={P1[np.argmin(ok)]:g}"
@@ -200,38 +252,41 @@ class DiffraxODE(AbstractSolver):
             y = self._run(t, P1)
         else:
             times, order = np.unique(t, return_inverse=True)
-            y = self._run(times, P1)[:, :, order]
-        return y[0], y[self.system.n]
+            y = self._run(times, P1)[:, order]
+        n = self.case.n
+        return y[..., :n], y[..., n:]
 
     def _identify(self, obs: Observations) -> Estimate:
         note = configure_threads(self.options["threads"])
-        system = smib_system(self.case)
-        values, sensitivities = self._functions(system)
+        case, n = self.case, self.case.n
+        values, sensitivities = self._functions(Structure.of(case))
         layout = ObservationLayout.of(obs)
         n_p, n_t = layout.P1.size, layout.t.size
         with jax.enable_x64(True):
             t = jnp.asarray(_pad(layout.t, bucket(n_t)))
             p1 = jnp.asarray(_pad(layout.P1, bucket(n_p)))
+            p_m = jnp.asarray(case.p_m, jnp.float64)
         controls = self._controls()
 
-        def simulate(m: float, d: float, with_jacobian: bool):
+        def simulate(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
             with jax.enable_x64(True):
+                m, d = jnp.asarray(m, jnp.float64), jnp.asarray(d, jnp.float64)
                 if with_jacobian:
-                    y, ok, jac = sensitivities(m, d, *controls, t, p1)
+                    y, ok, jac = sensitivities(m, d, p_m, *controls, t, p1)
                 else:
-                    y, ok = values(np.full(system.n, m), np.full(system.n, d), *controls, t, p1)
-                    jac = None
+                    (y, ok), jac = values(m, d, p_m, *controls, t, p1), None
             if not np.asarray(ok)[:n_p].all():
-                raise SolveError(f"{self.name}: integration failed at m={m:g}, d={d:g}, one of P1 in "
+                raise SolveError(f"{self.name}: integration failed at m={np.asarray(m).tolist()}, "
+                                 f"d={np.asarray(d).tolist()}, one of P1 in "
                                  f"[{layout.P1.min():g}, {layout.P1.max():g}]")
-            y = np.asarray(y)[:, :n_p, :n_t]
+            y = np.asarray(y)[:n_p, :n_t]
             if jac is None:
-                return y[0], y[system.n], None, None
-            jac = np.asarray(jac)[:, :n_p, :n_t]
-            return y[0], y[system.n], jac[0], jac[system.n]
+                return y[..., :n], y[..., n:], None, None
+            jac = np.asarray(jac)[:n_p, :n_t]  # (n_p, n_t, 2n states, 2n parameters)
+            return y[..., :n], y[..., n:], jac[:, :, :n], jac[:, :, n:]
 
         est = identify_least_squares(
-            simulate, obs, layout, self.options["m_bounds"], self.options["d_bounds"], analytic_jacobian=True,
+            simulate, obs, layout, *search_boxes(case, self.options), analytic_jacobian=True,
             rtol=self.options["rtol"],
         )
         return est._replace(message=f"{est.message} {note}".strip())

@@ -1,14 +1,23 @@
-"""numba kernels of `solvers.numba_rk`: explicit Runge-Kutta on the n-machine swing equation,
-the loop over the batch of input powers inside compiled code.
+"""numba kernels of `solvers.numba_rk`: explicit Runge-Kutta on the n-machine swing equation
+(`systems.model`: lossy Kron-reduced coupling, optional infinite bus), the loop over the batch of
+input powers inside compiled code.
 
 Packed arguments (each array argument costs ~0.1 us of dispatch, so they are few):
-- `system` (n, 5 + n): per machine m, d, b_inf (p.u.), delta0 (rad), omega0 (rad/s), then row k of B;
-- `P` (n_batch, n): mechanical power of each machine in each trajectory (p.u.);
+- `P1` (n_batch,): generator 1's mechanical power in each trajectory (p.u.); the other machines
+  get their p_m from `system` (as `Case.powers`);
+- `system` (n, 7 + 2n), `system_array(case)`: per machine k the columns `M`, `D` (p.u.), `DELTA0`
+  (rad), `OMEGA0` (rad/s), `P_M`, `C_INF`, `S_INF` (p.u.), then row k of C and row k of S
+  (p.u., from `COUPLING`; `systems.model.coupling`);
 - `options` (4,): rtol, atol, dt (s, rk4 only), max_steps.
 The state of one trajectory is y = [delta_1..n, omega_1..n] (2n,); with sensitivities it is
 followed by the columns of S = dy/dp (2n, 2n), p = (m_1..n, d_1..n), column j at
 y[2n + 2n j : 2n + 2n (j + 1)]. Step-size control sees only the first 2n entries, so a run with
 sensitivities takes exactly the steps of a run without.
+
+P_e takes n sin and n cos per evaluation (the expansion of `systems.model`: two mat-vecs, no
+trigonometric call per pair of machines); a system whose machines see only their own susceptance
+to the infinite bus (C = S = 0, c_inf = 0: the SMIB) takes one sin per machine instead, and the
+same bits (the expansion's other terms are exact zeros).
 """
 
 from __future__ import annotations
@@ -20,7 +29,21 @@ import numpy as np
 from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _c853
 
-__all__ = ["DOP853", "DOPRI5", "METHODS", "RK4", "kernel"]
+from systems.cases import Case
+from systems.model import coupling
+
+__all__ = ["DOP853", "DOPRI5", "METHODS", "RK4", "kernel", "system_array"]
+
+# Columns of the packed system (see the module docstring); COUPLING + j is C[k, j],
+# COUPLING + n + j is S[k, j].
+M, D, DELTA0, OMEGA0, P_M, C_INF, S_INF, COUPLING = range(8)
+
+
+def system_array(case: Case) -> np.ndarray:
+    """The packed system of `case` (n, 7 + 2n) float64, the layout of the module docstring."""
+    k = coupling(case)
+    columns = [case.m, case.d, case.delta0, case.omega0, case.p_m, k.c_inf, k.s_inf]
+    return np.column_stack([np.array(columns, np.float64).T, k.C, k.S])
 
 RK4, DOPRI5, DOP853 = 0, 1, 2
 METHODS = {"rk4": RK4, "dopri5": DOPRI5, "dop853": DOP853}
@@ -56,44 +79,86 @@ D8_E3, D8_E5, D8_D = _c853.E3.copy(), _c853.E5.copy(), _c853.D.copy()
 @njit(cache=True, error_model="numpy")
 def _start(y, ts, order, system, n, out, col):
     """y = the initial state (delta0, omega0 of each machine; zero sensitivities); writes it to
-    out[:, col, ...] at every output time <= 0 and returns how many output times that was."""
+    trajectory `col` of `out` (see `kernel`) at every output time <= 0 and returns how many output
+    times that was."""
     for k in range(n):
-        y[k], y[n + k] = system[k, 3], system[k, 4]
+        y[k], y[n + k] = system[k, DELTA0], system[k, OMEGA0]
     for i in range(2 * n, y.size):
         y[i] = 0.0
     i_out = 0
     while i_out < ts.size and ts[order[i_out]] <= 0.0:
         for i in range(y.size):
-            out[i, col, order[i_out]] = y[i]
+            out[i // n, col, order[i_out], i % n] = y[i]
         i_out += 1
     return i_out
 
 
 @njit(cache=True, error_model="numpy")
-def _rhs(y, out, P, system, n, sens):
-    """out = dy/dt for state y (see the module docstring); P (n,) p.u."""
+def _is_coupled(system, n):
+    """Whether P_e needs more than s_inf_k sin(delta_k): some C, S or c_inf entry is non-zero."""
     for k in range(n):
-        m, d, omega = system[k, 0], system[k, 1], y[n + k]
-        dk = y[k]
-        pe = system[k, 2] * math.sin(dk)
-        for j in range(n):
-            if system[k, 5 + j] != 0.0:
-                pe += system[k, 5 + j] * math.sin(dk - y[j])
+        if system[k, C_INF] != 0.0:
+            return True
+        for j in range(2 * n):
+            if system[k, COUPLING + j] != 0.0:
+                return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def _rhs(y, out, P, system, n, sens, coupled, scratch):
+    """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `coupled` from
+    `_is_coupled` (False: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,) work
+    space: cos of each angle, sin of each angle, one row of the Jacobian of P_e. (Indexes into
+    scratch, not slices of it: a view costs reference counting on every call, measured 3x on the
+    SMIB grid.)"""
+    two_n = 2 * n
+    if coupled:
+        for k in range(n):
+            scratch[k] = math.cos(y[k])
+            scratch[n + k] = math.sin(y[k])
+    for k in range(n):
+        m, d, omega = system[k, M], system[k, D], y[n + k]
+        ck = sk = 0.0
+        if coupled:
+            # P_e,k = c_k (C c - S s)_k + s_k (C s + S c)_k + c_inf_k c_k + s_inf_k s_k (systems.model)
+            ck, sk = scratch[k], scratch[n + k]
+            cc = cs = sc = ss = 0.0
+            for j in range(n):
+                ckj, skj = system[k, COUPLING + j], system[k, COUPLING + n + j]
+                cj, sj = scratch[j], scratch[n + j]
+                cc += ckj * cj
+                cs += ckj * sj
+                sc += skj * cj
+                ss += skj * sj
+            pe = ck * (cc - ss) + sk * (cs + sc) + (system[k, C_INF] * ck + system[k, S_INF] * sk)
+        else:
+            pe = system[k, S_INF] * math.sin(y[k])
         acc = (P[k] - d * omega - pe) / m
         out[k] = omega
         out[n + k] = acc
         if sens:
-            two_n = 2 * n
-            dpe = system[k, 2] * math.cos(dk)  # d Pe_k / d delta_k
-            for j in range(n):
-                if system[k, 5 + j] != 0.0:
-                    dpe += system[k, 5 + j] * math.cos(dk - y[j])
+            if coupled:
+                # scratch[2n + j] = d P_e,k / d delta_j = C_kj sin(d_k - d_j) - S_kj cos(d_k - d_j)
+                # for j != k; P_e,k depends on the differences, so d / d delta_k is minus their sum,
+                # plus the infinite bus's term
+                dpe = system[k, S_INF] * ck - system[k, C_INF] * sk
+                for j in range(n):
+                    if j != k:
+                        cj, sj = scratch[j], scratch[n + j]
+                        g = (system[k, COUPLING + j] * (sk * cj - ck * sj)
+                             - system[k, COUPLING + n + j] * (ck * cj + sk * sj))
+                        scratch[two_n + j] = g
+                        dpe -= g
+            else:
+                dpe = system[k, S_INF] * math.cos(y[k])  # d P_e,k / d delta_k
             for col in range(two_n):
                 base = two_n + two_n * col
                 s_acc = -(dpe * y[base + k] + d * y[base + n + k])
-                for j in range(n):
-                    if system[k, 5 + j] != 0.0:
-                        s_acc += system[k, 5 + j] * math.cos(dk - y[j]) * y[base + j]
+                if coupled:
+                    for j in range(n):
+                        if j != k:
+                            s_acc -= scratch[two_n + j] * y[base + j]
                 s_acc /= m
                 if col == k:
                     s_acc -= acc / m  # d acc_k / d m_k
@@ -112,7 +177,7 @@ def _rms(v, scale, n_ctrl):
 
 
 @njit(cache=True, error_model="numpy")
-def _initial_step(y0, f0, P, system, n, sens, t_end, order, rtol, atol, work):
+def _initial_step(y0, f0, P, system, n, sens, coupled, scratch, t_end, order, rtol, atol, work):
     """scipy's `select_initial_step` (Hairer, Norsett & Wanner, II.4) on the controlled entries."""
     n_ctrl = 2 * n
     scale, y1, f1 = work[0], work[1], work[2]
@@ -123,7 +188,7 @@ def _initial_step(y0, f0, P, system, n, sens, t_end, order, rtol, atol, work):
     h0 = min(h0, t_end)
     for i in range(y0.size):
         y1[i] = y0[i] + h0 * f0[i]
-    _rhs(y1, f1, P, system, n, sens)
+    _rhs(y1, f1, P, system, n, sens, coupled, scratch)
     for i in range(n_ctrl):
         y1[i] = f1[i] - f0[i]
     d2 = _rms(y1, scale, n_ctrl) / h0
@@ -135,7 +200,7 @@ def _initial_step(y0, f0, P, system, n, sens, t_end, order, rtol, atol, work):
 
 
 @njit(cache=True, error_model="numpy")
-def _stages(K, y, h, A, first, last, tmp, P, system, n, sens):
+def _stages(K, y, h, A, first, last, tmp, P, system, n, sens, coupled, scratch):
     """K[s] = f(y + h sum_j A[s, j] K[j]) for s in [first, last)."""
     for s in range(first, last):
         for i in range(y.size):
@@ -143,9 +208,10 @@ def _stages(K, y, h, A, first, last, tmp, P, system, n, sens):
             for j in range(s):
                 acc += A[s, j] * K[j, i]
             tmp[i] = y[i] + h * acc
-        _rhs(tmp, K[s], P, system, n, sens)
+        _rhs(tmp, K[s], P, system, n, sens, coupled, scratch)
 
 
+@functools.cache
 def _make_adaptive(method: int, sens: bool, n: int):
     """One trajectory by dopri5 or dop853 (scipy's step-size control), compiled for one method
     and one `sens` (closure constants, so the branches on them fold away)."""
@@ -156,11 +222,11 @@ def _make_adaptive(method: int, sens: bool, n: int):
     exponent = -1.0 / (err_order + 1)
     n_ctrl, n_y = 2 * n, 2 * n + (4 * n * n if sens else 0)
 
-    @njit(cache=True, error_model="numpy")
-    def adaptive(ts, order, P, system, rtol, atol, max_steps, out, col):
-        """From t = 0 to ts[order[-1]] (s), dense output at ts[order] into out[:, col, order];
-        returns a status code."""
+    def adaptive(ts, order, P, system, coupled, rtol, atol, max_steps, out, col):
+        """From t = 0 to ts[order[-1]] (s), dense output at ts[order] into trajectory `col` of `out`
+        (see `kernel`); returns a status code."""
         n_t = ts.size
+        scratch = np.empty(3 * n)
         K = np.empty((16, n_y))
         work = np.empty((8, n_y))
         y, y_new, tmp = work[3], work[4], work[5]
@@ -169,8 +235,9 @@ def _make_adaptive(method: int, sens: bool, n: int):
         i_out = _start(y, ts, order, system, n, out, col)
         if t_end <= 0.0:
             return OK
-        _rhs(y, K[0], P, system, n, sens)
-        h_abs = _initial_step(y, K[0], P, system, n, sens, t_end, err_order, rtol, atol, work)
+        _rhs(y, K[0], P, system, n, sens, coupled, scratch)
+        h_abs = _initial_step(y, K[0], P, system, n, sens, coupled, scratch, t_end, err_order, rtol, atol,
+                              work)
         t = 0.0
         steps = 0
         while t < t_end:
@@ -186,13 +253,13 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 t_new = min(t + h_abs, t_end)
                 h = t_new - t
                 h_abs = h
-                _stages(K, y, h, A, 1, n_stages, tmp, P, system, n, sens)
+                _stages(K, y, h, A, 1, n_stages, tmp, P, system, n, sens, coupled, scratch)
                 for i in range(n_y):
                     acc = 0.0
                     for j in range(n_stages):
                         acc += B[j] * K[j, i]
                     y_new[i] = y[i] + h * acc
-                _rhs(y_new, K[n_stages], P, system, n, sens)
+                _rhs(y_new, K[n_stages], P, system, n, sens, coupled, scratch)
                 e5n, e3n = 0.0, 0.0
                 for i in range(n_ctrl):
                     sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
@@ -222,12 +289,12 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 h_abs *= factor if factor > MIN_FACTOR else MIN_FACTOR  # noqa: FURB136
                 rejected = True
             if i_out < n_t and ts[order[i_out]] <= t_new:
-                _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens)
+                _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens, coupled, scratch)
                 while i_out < n_t and ts[order[i_out]] <= t_new:
                     x = (ts[order[i_out]] - t) / h
                     o = order[i_out]
                     for i in range(n_y):
-                        out[i, col, o] = _dense_eval(method, F, y[i], i, x, h)
+                        out[i // n, col, o, i % n] = _dense_eval(method, F, y[i], i, x, h)
                     i_out += 1
             t = t_new
             for i in range(n_y):
@@ -238,11 +305,11 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 return NOT_FINITE
         return OK
 
-    return adaptive
+    return _jit_variant(adaptive, f"{method}_{int(sens)}_{n}")
 
 
 @njit(cache=True, error_model="numpy")
-def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens):
+def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens, coupled, scratch):
     """F: dopri5's Q^T = (K^T P)^T (4 rows), or DOP853's 7 rows (3 extra stages evaluated)."""
     n_y = y.size
     if method == DOPRI5:
@@ -253,7 +320,7 @@ def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens):
                     acc += DP_P[j, r] * K[j, i]
                 F[r, i] = acc
         return
-    _stages(K, y, h, D8_A, 13, 16, tmp, P, system, n, sens)
+    _stages(K, y, h, D8_A, 13, 16, tmp, P, system, n, sens, coupled, scratch)
     for i in range(n_y):
         dy = y_new[i] - y[i]
         F[0, i] = dy
@@ -278,16 +345,17 @@ def _dense_eval(method, F, y_i, i, x, h):
     return y_i + v
 
 
+@functools.cache
 def _make_rk4(sens: bool, n: int):
     """One trajectory by classic RK4, compiled for one `sens` and n machines."""
     n_y = 2 * n + (4 * n * n if sens else 0)
 
-    @njit(cache=True, error_model="numpy")
-    def rk4(ts, order, P, system, dt, max_steps, out, col):
+    def rk4(ts, order, P, system, coupled, dt, max_steps, out, col):
         """ceil(t_end / dt) equal steps from t = 0 to t_end = ts[order[-1]] (s), output at ts[order]
         by cubic Hermite interpolation of each step's end states and derivatives (4th order, as
         RK4 itself); returns a status code."""
         n_t = ts.size
+        scratch = np.empty(3 * n)
         K = np.empty((4, n_y))
         work = np.empty((4, n_y))
         y, y_old, f_new, tmp = work[0], work[1], work[2], work[3]
@@ -299,30 +367,30 @@ def _make_rk4(sens: bool, n: int):
         if n_steps > max_steps:
             return TOO_MANY_STEPS
         h = t_end / n_steps
-        _rhs(y, K[0], P, system, n, sens)
+        _rhs(y, K[0], P, system, n, sens, coupled, scratch)
         for step in range(n_steps):
             t0 = step * h
             t1 = t_end if step == n_steps - 1 else (step + 1) * h
             for i in range(n_y):
                 y_old[i] = y[i]
                 tmp[i] = y[i] + 0.5 * h * K[0, i]
-            _rhs(tmp, K[1], P, system, n, sens)
+            _rhs(tmp, K[1], P, system, n, sens, coupled, scratch)
             for i in range(n_y):
                 tmp[i] = y_old[i] + 0.5 * h * K[1, i]
-            _rhs(tmp, K[2], P, system, n, sens)
+            _rhs(tmp, K[2], P, system, n, sens, coupled, scratch)
             for i in range(n_y):
                 tmp[i] = y_old[i] + h * K[2, i]
-            _rhs(tmp, K[3], P, system, n, sens)
+            _rhs(tmp, K[3], P, system, n, sens, coupled, scratch)
             for i in range(n_y):
                 y[i] = y_old[i] + h / 6.0 * (K[0, i] + 2.0 * (K[1, i] + K[2, i]) + K[3, i])
-            _rhs(y, f_new, P, system, n, sens)
+            _rhs(y, f_new, P, system, n, sens, coupled, scratch)
             while i_out < n_t and ts[order[i_out]] <= t1:
                 x = (ts[order[i_out]] - t0) / h
                 h00, h10 = (1 + 2 * x) * (1 - x) ** 2, h * x * (1 - x) ** 2
                 h01, h11 = x * x * (3 - 2 * x), h * x * x * (x - 1)
                 o = order[i_out]
                 for i in range(n_y):
-                    out[i, col, o] = h00 * y_old[i] + h10 * K[0, i] + h01 * y[i] + h11 * f_new[i]
+                    out[i // n, col, o, i % n] = h00 * y_old[i] + h10 * K[0, i] + h01 * y[i] + h11 * f_new[i]
                 i_out += 1
             for i in range(n_y):
                 K[0, i] = f_new[i]
@@ -331,7 +399,35 @@ def _make_rk4(sens: bool, n: int):
                 return NOT_FINITE
         return OK
 
-    return rk4
+    return _jit_variant(rk4, f"{int(sens)}_{n}")
+
+
+def _name_for_cache(dispatcher, name: str):
+    """Give `dispatcher` the fixed identity `name` in pickles, so that numba's on-disk cache can
+    find a kernel that calls it: numba keys a closure's cache entry by the pickle of its closure
+    variables, and a dispatcher pickles with a random per-process uuid unless it has one (the
+    batch kernels, closures over the integrators that call these functions, were compiled afresh
+    in every process: ~5-10 s each). Uses numba's private `_set_uuid`; without it the kernels
+    still work, uncached."""
+    set_uuid = getattr(dispatcher, "_set_uuid", None)
+    if set_uuid is not None and getattr(dispatcher, "_MemoMixin__uuid", "") is None:
+        set_uuid(f"{__name__}.{name}")
+    return dispatcher
+
+
+for _name in ("_start", "_is_coupled", "_rhs", "_rms", "_initial_step", "_stages", "_dense_coefficients",
+              "_dense_eval"):
+    _name_for_cache(globals()[_name], _name)
+
+
+def _jit_variant(py_func, variant: str, **flags):
+    """`py_func` compiled (cached, numpy's error model), its qualified name suffixed by `variant`.
+    The variants of one closure must differ in name: numba names a compiled function (and the
+    environment it boxes results with) by qualified name, argument types and a per-process
+    counter, so two variants loaded from the cache that two processes numbered alike would clash
+    (measured: a kernel returning with "'descr' is NULL")."""
+    py_func.__qualname__ = f"{py_func.__qualname__}_{variant}"
+    return _name_for_cache(njit(cache=True, error_model="numpy", **flags)(py_func), py_func.__qualname__)
 
 
 def _make_batch(method: int, sens: bool, parallel: bool, n: int):
@@ -342,10 +438,8 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
         adaptive = _make_adaptive(method, sens, n)
         rk4 = None
 
-    @njit(cache=True, parallel=parallel, error_model="numpy")
-    def batch(t, P, system, options):
-        n_y = 2 * n + (4 * n * n if sens else 0)
-        n_b, n_t = P.shape[0], t.size
+    def batch(t, P1, system, options):
+        n_b, n_t = P1.size, t.size
         ordered = True
         for i in range(1, n_t):
             if t[i] < t[i - 1]:
@@ -353,25 +447,32 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
                 break
         order = np.arange(n_t) if ordered else np.argsort(t, kind="mergesort")
         rtol, atol, dt, max_steps = options[0], options[1], options[2], int(options[3])
-        out = np.empty((n_y, n_b, n_t))
+        coupled = _is_coupled(system, n)
+        out = np.empty((2 + (4 * n if sens else 0), n_b, n_t, n))
         status = np.zeros(n_b, np.int64)
         for b in prange(n_b):
+            P = system[:, P_M].copy()  # Case.powers: generator 1 gets P1, the others p_m
+            P[0] = P1[b]
             if method == RK4:
-                status[b] = rk4(t, order, P[b], system, dt, max_steps, out, b)
+                status[b] = rk4(t, order, P, system, coupled, dt, max_steps, out, b)
             else:
-                status[b] = adaptive(t, order, P[b], system, rtol, atol, max_steps, out, b)
+                status[b] = adaptive(t, order, P, system, coupled, rtol, atol, max_steps, out, b)
         for b in range(n_b):
             if status[b] != OK:
                 return out, b, status[b]
         return out, -1, OK
 
-    return batch
+    return _jit_variant(batch, f"{method}_{int(sens)}_{int(parallel)}_{n}", parallel=parallel)
 
 
 @functools.cache
 def kernel(method: int, sens: bool, parallel: bool, n: int = 1):
-    """The compiled batch integrator `(t, P, system, options) -> (states, failed, status)`: states
-    (n_y, n_batch, n_t) at times t (s, 1-D, >= 0, any order, repeats allowed) for each row of P,
-    n_y = 2n (+ 4n^2 with `sens`); `failed` the index of the first failed trajectory (-1: none)
-    and `status` its code. `parallel`: trajectories over numba's threads (prange)."""
+    """The compiled batch integrator `(t, P1, system, options) -> (out, failed, status)` of an
+    n-machine `system` (`system_array`) at times t (s, 1-D, >= 0, any order, repeats allowed) for
+    each generator-1 power P1 (n_batch,) p.u.: out (2 (+ 4n with `sens`), n_batch, n_t, n), the
+    state y (module docstring) in blocks of n, so that out[0] is delta (rad) and out[1] omega
+    (rad/s), each (n_batch, n_t, n) as the adapter returns them (no reshaping per query), and
+    out[2 + 2j], out[3 + 2j] are d delta / d p_j, d omega / d p_j, p = (m_1..n, d_1..n) p.u.;
+    `failed` the index of the first failed trajectory (-1: none) and `status` its code.
+    `parallel`: trajectories over numba's threads (prange)."""
     return _make_batch(method, sens, parallel, n)

@@ -1,5 +1,5 @@
-"""numba-compiled explicit Runge-Kutta (RK4, Dormand-Prince 5(4), DOP853), the loop over P1
-inside compiled code; the kernels are in `solvers.numba_kernels`."""
+"""numba-compiled explicit Runge-Kutta (RK4, Dormand-Prince 5(4), DOP853) on the n-machine swing
+equation, the loop over P1 inside compiled code; the kernels are in `solvers.numba_kernels`."""
 
 from __future__ import annotations
 
@@ -9,8 +9,6 @@ from typing import Any, ClassVar, Literal
 import numba
 import numpy as np
 
-from systems.cases import Observations
-from systems.model import SwingSystem, smib_system
 from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (
@@ -18,8 +16,10 @@ from solvers.classical import (
     ObservationLayout,
     ToleranceOptions,
     identify_least_squares,
+    search_boxes,
 )
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
+from systems.cases import Observations
 
 _FAILURES = {
     kernels.TOO_MANY_STEPS: "more than max_steps steps",
@@ -28,13 +28,6 @@ _FAILURES = {
 }
 COARSE_TOLERANCES = (1e-6, 1e-9)  # rtol, atol of the start grid of identify
 RK4_STEPS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)  # s, the work-precision sweep of rk4
-
-
-def system_array(system: SwingSystem) -> np.ndarray:
-    """The packed system of `solvers.numba_kernels`: (n, 5 + n) float64, per machine m, d, b_inf,
-    delta0, omega0, then its row of B."""
-    columns = [system.m, system.d, system.b_inf, system.delta0, system.omega0]
-    return np.column_stack([np.array(columns, np.float64).T, np.array(system.B, np.float64)])
 
 
 Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.METHODS`
@@ -56,9 +49,11 @@ class NumbaRK(AbstractSolver):
     fixed step, cubic Hermite output); rtol, atol (adaptive methods; ode45's 1e-3, 1e-6 by
     default); dt (s, rk4: ceil(t / dt) equal steps); max_steps (per trajectory); parallel (P1 over
     numba threads, prange, for more than one P1) with `threads` of them; m_bounds, d_bounds
-    (p.u.), the search box of `identify`, which integrates the forward sensitivities
-    d(delta, omega)/d(m, d) along (the analytic Jacobian of the least squares).
-    The right-hand side is the n-machine swing equation; P1 drives machine 1.
+    (p.u.; default the case's per-machine boxes), the search box of `identify`, which integrates
+    the forward sensitivities d(delta, omega)/d(m_1..n, d_1..n) along (the analytic Jacobian of
+    the least squares).
+    The right-hand side is the case's n-machine swing equation (`systems.model`); P1 is
+    generator 1's mechanical power, the other machines run at their p_m.
     """
 
     name: ClassVar[str] = "numba-rk"
@@ -91,25 +86,26 @@ class NumbaRK(AbstractSolver):
         if hasattr(self, "_system"):
             return
         options = self.options
-        self._system = system_array(smib_system(self.case))
+        self._system = kernels.system_array(self.case)
         self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]],
                                  np.float64)
-        method, n = kernels.METHODS[options["method"]], self._system.shape[0]
+        method, n = kernels.METHODS[options["method"]], self.case.n
         self._serial = kernels.kernel(method, False, False, n)
         self._batch = kernels.kernel(method, False, options["parallel"], n)
         self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
-        t, P = np.array([0.0, 0.1]), np.full((2, n), 0.1)
+        t, P1 = np.array([0.0, 0.1]), np.full(2, self.case.p1_min)
         for run in (self._serial, self._batch, self._sensitivities):
-            run(t, P, self._system, self._options)
+            run(t, P1, self._system, self._options)
 
     def _fit(self) -> None:
         self._prepare()
 
     def _run(self, run, t: np.ndarray, P1: np.ndarray, system: np.ndarray, options: np.ndarray) -> np.ndarray:
-        """States (n_y, len(P1), len(t)) from the kernel `run`, or SolveError naming P1."""
+        """States (n_blocks, len(P1), len(t), n) from the kernel `run` (`numba_kernels.kernel`:
+        [0] delta, [1] omega, then the sensitivities), or SolveError naming P1."""
         if run is not self._serial:
             numba.set_num_threads(self.options["threads"])
-        states, failed, status = run(t, P1[:, None], system, options)
+        states, failed, status = run(t, P1, system, options)
         if failed >= 0:
             raise SolveError(f"{self.name}: integration failed at P1={P1[failed]:g}: {_FAILURES[status]}")
         return states
@@ -120,36 +116,38 @@ class NumbaRK(AbstractSolver):
         return states[0], states[1]
 
     def _identify(self, obs: Observations) -> Estimate:
-        """Least squares with the sensitivity Jacobian. The start grid is ranked by plain
-        simulations at rtol, atol no tighter than `COARSE_TOLERANCES`; the refinement integrates
-        the sensitivities along at the configured tolerances and keeps them for the Jacobian at the
-        same (m, d), which least squares asks for right after the residual."""
+        """Least squares over every machine's (m, d) with the sensitivity Jacobian. The start grid
+        is ranked by plain simulations at rtol, atol no tighter than `COARSE_TOLERANCES`; the
+        refinement integrates the sensitivities along at the configured tolerances and keeps them
+        for the Jacobian at the same (m, d), which least squares asks for right after the
+        residual."""
         self._prepare()
         layout = ObservationLayout.of(obs)
         coarse = self._options.copy()
         coarse[:2] = np.maximum(coarse[:2], COARSE_TOLERANCES)
         last: dict[str, Any] = {}
 
-        def with_params(m: float, d: float) -> np.ndarray:
+        def with_params(m: np.ndarray, d: np.ndarray) -> np.ndarray:
             system = self._system.copy()
-            system[0, :2] = m, d
+            system[:, kernels.M], system[:, kernels.D] = m, d
             return system
 
-        def rank_starts(m: float, d: float, with_jacobian: bool):
+        def rank_starts(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
             states = self._run(self._batch, layout.t, layout.P1, with_params(m, d), coarse)
             return states[0], states[1], None, None
 
-        def simulate(m: float, d: float, with_jacobian: bool):
-            if last.get("md") != (m, d):
-                last["md"] = (m, d)
+        def simulate(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
+            key = (m.tobytes(), d.tobytes())
+            if last.get("md") != key:
+                last["md"] = key
                 last["states"] = self._run(self._sensitivities, layout.t, layout.P1, with_params(m, d),
                                            self._options)
             states = last["states"]
             if not with_jacobian:
                 return states[0], states[1], None, None
-            # rows 2..5: d delta/dm, d omega/dm, d delta/dd, d omega/dd
-            return states[0], states[1], np.stack([states[2], states[4]], -1), np.stack([states[3], states[5]], -1)
+            # blocks 2 + 2j, 3 + 2j: d delta / d p_j, d omega / d p_j -> (n_p, n_t, n, 2n), p_j last
+            return states[0], states[1], np.moveaxis(states[2::2], 0, -1), np.moveaxis(states[3::2], 0, -1)
 
-        return identify_least_squares(simulate, obs, layout, self.options["m_bounds"],
-                                      self.options["d_bounds"], analytic_jacobian=True,
-                                      rank_starts=rank_starts, rtol=self.options["rtol"])
+        return identify_least_squares(simulate, obs, layout, *search_boxes(self.case, self.options),
+                                      analytic_jacobian=True, rank_starts=rank_starts,
+                                      rtol=self.options["rtol"])

@@ -1,5 +1,10 @@
-"""The diffrax adapter: accuracy against the reference and a closed form, batch modes, constant step,
-identification with the Jacobian through the solver, option checks, failures."""
+"""The diffrax adapter: accuracy against the reference and a closed form (SMIB and a lossy
+3-machine system), batch modes, constant step, identification of every machine's m and d with the
+Jacobian through the solver, option checks, failures.
+
+JIT compilation dominates the runtime: the shapes are chosen so that tests share compiled code
+(queries of len(P1) = 16 and 4 are compiled sizes of `bucket`; the 3-machine tests share one
+case, one observation layout and so one compilation of values and of sensitivities)."""
 
 from __future__ import annotations
 
@@ -10,14 +15,15 @@ import pytest
 from conftest import require
 
 from harness import metrics
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
-from systems.reference import reference
 from solvers import make_solver
 from solvers.base import SolveError
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
+from systems.reference import reference
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
-SMALL_SHAPES = ((201, 12),)  # what the secondary solvers compile in fit: JIT is the slow part here
+N_P1 = 16  # a compiled size of `bucket`: fit compiles what the queries use
+SMALL_SHAPES = ((201, N_P1),)
 
 
 def _fitted(case=SMIB_INFERENCE, config="default", shapes=SMALL_SHAPES, **options):
@@ -28,17 +34,55 @@ def _fitted(case=SMIB_INFERENCE, config="default", shapes=SMALL_SHAPES, **option
     return solver
 
 
+def _max_rel(estimate: np.ndarray, truth) -> float:
+    """Largest relative error over the machines."""
+    return float(np.max(np.abs(np.asarray(estimate) / np.asarray(truth) - 1.0)))
+
+
+def three_machine_lossy() -> Case:
+    """Three machines on a lossy Kron-reduced network (G, B non-zero, no infinite bus), unequal
+    voltages and mechanical powers: exercises every term of the electrical power."""
+    G = np.array([[0.3, -0.1, -0.05], [-0.1, 0.25, -0.08], [-0.05, -0.08, 0.2]])
+    B = np.array([[-1.6, 0.9, 0.5], [0.9, -1.7, 0.7], [0.5, 0.7, -1.4]])
+    return Case(name="three-lossy", m=(0.3, 0.2, 0.25), d=(0.12, 0.08, 0.1), delta0=(0.1, 0.05, -0.02),
+                omega0=(0.1, 0.0, -0.05), p_m=(0.15, 0.1, 0.05), E=(1.05, 1.0, 1.02), G=G, B=B,
+                g_inf=(0.0,) * 3, b_inf=(0.0,) * 3, t_final=10.0, p1_min=0.1, p1_max=0.2,
+                m_box=((0.05, 1.0),) * 3, d_box=((0.02, 0.5),) * 3)
+
+
+THREE = three_machine_lossy()
+THREE_T, THREE_P1 = np.linspace(0.0, THREE.t_final, 64), np.linspace(THREE.p1_min, THREE.p1_max, 4)
+
+
 @pytest.fixture(scope="module")
 def tight():
     """The tight config, fitted on the grid's shapes (the default config shares its compiled code:
     the tolerances are arguments)."""
-    return _fitted(config="tight", shapes=((201, 100), (201, 12), (1, 1)))
+    return _fitted(config="tight", shapes=((201, 100), (201, N_P1), (1, 1)))
+
+
+@pytest.fixture(scope="module")
+def three_tight():
+    """The tight config on the 3-machine case, compiled for the (64 t, 4 P1) grid."""
+    return _fitted(THREE, "tight", shapes=((THREE_T.size, THREE_P1.size),))
+
+
+@pytest.fixture(scope="module")
+def three_obs() -> Observations:
+    """80 noise-free samples of every machine's angle from the reference on the 3-machine grid:
+    their layout pads to the grid's compiled size (64 t, 4 P1)."""
+    delta, _ = reference(THREE, THREE_T, THREE_P1)
+    rng = np.random.default_rng(7)
+    i, j = np.unravel_index(rng.choice(THREE_P1.size * THREE_T.size, 80, replace=False),
+                            (THREE_P1.size, THREE_T.size))
+    return Observations(THREE_T[j], THREE_P1[i], delta[i, j])
 
 
 def test_tight_matches_reference_on_the_grid(tight):
     t, P1 = standard_grid(SMIB_INFERENCE)
     traj = tight.solve(t, P1)
     ref_delta, ref_omega = reference(SMIB_INFERENCE, t, P1)
+    assert traj.delta.shape == traj.omega.shape == (100, 201, 1)
     assert metrics.rel_l2(traj.delta, ref_delta) <= 1e-9
     assert metrics.rel_l2(traj.omega, ref_omega) <= 1e-8  # measured 1.6e-9
 
@@ -46,7 +90,7 @@ def test_tight_matches_reference_on_the_grid(tight):
 def test_default_is_ode45_like():
     solver = _fitted()
     assert (solver.options["rtol"], solver.options["atol"]) == (1e-3, 1e-6)
-    t, P1 = standard_grid(SMIB_INFERENCE, n_p1=12)
+    t, P1 = standard_grid(SMIB_INFERENCE, n_p1=N_P1)
     error = metrics.rel_l2(solver.solve(t, P1).delta, reference(SMIB_INFERENCE, t, P1)[0])
     assert 1e-9 < error < 1e-2
 
@@ -58,34 +102,45 @@ def test_arbitrary_sizes_padded_order_and_time_zero(tight):
     ref_delta, ref_omega = reference(SMIB_INFERENCE, t, P1)
     np.testing.assert_allclose(traj.delta, ref_delta, rtol=0, atol=1e-9)
     np.testing.assert_allclose(traj.omega, ref_omega, rtol=0, atol=1e-9)
-    assert (traj.delta[:, 1] == SMIB_INFERENCE.delta0).all() and (traj.omega[:, 5] == SMIB_INFERENCE.omega0).all()
+    assert (traj.delta[:, 1] == SMIB_INFERENCE.delta0).all()
+    assert (traj.omega[:, 5] == SMIB_INFERENCE.omega0).all()
 
 
 def test_linear_case_matches_closed_form():
-    case = dataclasses.replace(SMIB_INFERENCE, b=0.0)
+    case = dataclasses.replace(SMIB_INFERENCE, b_inf=(0.0,))
     solver = _fitted(case, "tight")
-    t, P1 = standard_grid(case, n_p1=12)
+    t, P1 = standard_grid(case, n_p1=N_P1)
     traj = solver.solve(t, P1)
-    m, d = case.m, case.d
+    (m,), (d,), (delta0,), (omega0,) = case.m, case.d, case.delta0, case.omega0
     v = P1[:, None] / d
     decay = np.exp(-d * t / m)
-    delta = case.delta0 + v * t + (case.omega0 - v) * (m / d) * (1.0 - decay)
-    omega = v + (case.omega0 - v) * decay
-    assert metrics.rel_l2(traj.delta, delta) <= 1e-9
-    assert metrics.rel_l2(traj.omega, omega) <= 1e-9
+    delta = delta0 + v * t + (omega0 - v) * (m / d) * (1.0 - decay)
+    omega = v + (omega0 - v) * decay
+    assert metrics.rel_l2(traj.delta[..., 0], delta) <= 1e-9
+    assert metrics.rel_l2(traj.omega[..., 0], omega) <= 1e-9
 
 
-def test_vmap_and_stacked_agree(tight):
-    vmap = _fitted(config="tight", batch="vmap")
-    t, P1 = standard_grid(SMIB_INFERENCE, n_p1=12)
-    a, b = tight.solve(t, P1), vmap.solve(t, P1)
-    # their steps differ: the difference is the solvers' error at rtol 1e-10 (~4e-9 measured)
+def test_three_machine_lossy_matches_reference(three_tight):
+    """Every coupling term (G, B, unequal E) and the mechanical powers (generator 1 gets P1, the
+    others p_m): measured max errors 3e-10 rad, 1.1e-9 rad/s."""
+    traj = three_tight.solve(THREE_T, THREE_P1)
+    ref_delta, ref_omega = reference(THREE, THREE_T, THREE_P1)
+    assert traj.delta.shape == traj.omega.shape == (4, 64, 3)
+    np.testing.assert_allclose(traj.delta, ref_delta, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(traj.omega, ref_omega, rtol=0, atol=1e-8)
+
+
+def test_vmap_and_stacked_agree(three_tight):
+    """On the 3-machine case: vmap batches the (n, n_p) powers one column per trajectory."""
+    vmap = _fitted(THREE, "tight", shapes=((THREE_T.size, THREE_P1.size),), batch="vmap")
+    a, b = three_tight.solve(THREE_T, THREE_P1), vmap.solve(THREE_T, THREE_P1)
+    # their steps differ: the difference is the solvers' error at rtol 1e-10 (~1e-9 measured)
     np.testing.assert_allclose(a.delta, b.delta, rtol=0, atol=2e-8)
     np.testing.assert_allclose(a.omega, b.omega, rtol=0, atol=2e-8)
 
 
 def test_constant_step_converges():
-    t, P1 = standard_grid(SMIB_INFERENCE, n_p1=12)
+    t, P1 = standard_grid(SMIB_INFERENCE, n_p1=N_P1)
     ref_delta = reference(SMIB_INFERENCE, t, P1)[0]
     solver = _fitted(dt=1.0)
     assert [p["dt"] for p in solver.precision_sweep([1e-3])] == [1.0, 0.5, 0.2, 0.1, 0.05, 0.02]
@@ -102,42 +157,73 @@ def test_adaptive_precision_sweep_is_the_tolerance_sweep(tight):
     assert tight.precision_sweep([1e-4]) == [{"rtol": 1e-4, "atol": pytest.approx(1e-7)}]
 
 
-@pytest.fixture(scope="module")
-def identification_obs():
-    from harness.suites.identification import observations
-
-    return observations(SMIB_IDENTIFICATION.with_params(0.18, 0.09), 100, 0.0, seed=1000)
-
-
-def test_identify_recovers_m_and_d(identification_obs):
-    est = make_solver("diffrax", SMIB_IDENTIFICATION, "tight").identify(identification_obs)
+def test_identify_recovers_m_and_d(tight):
+    """SMIB, noise-free: every time of the grid once, each at one of 16 P1. The layout is the
+    (201, 16) grid `tight` compiled values for (SMIB_IDENTIFICATION has the inference case's
+    coupling and initial state), so only the sensitivities compile here."""
+    case = SMIB_IDENTIFICATION.with_params(0.18, 0.09)
+    t, P1 = standard_grid(case, n_p1=N_P1)
+    delta, _ = reference(case, t, P1)
+    i = np.random.default_rng(1000).permutation(np.arange(t.size) % N_P1)  # every P1 used
+    obs = Observations(t, P1[i], delta[i, np.arange(t.size)])
+    est = make_solver("diffrax", SMIB_IDENTIFICATION, "tight").identify(obs)
     assert est.success, est.message
-    assert metrics.rel_error(est.m, 0.18) < 1e-4
-    assert metrics.rel_error(est.d, 0.09) < 1e-4
+    assert est.m.shape == est.d.shape == (1,) and est.m_ci95.shape == (1, 2)
+    assert _max_rel(est.m, 0.18) < 1e-6  # measured 1e-9
+    assert _max_rel(est.d, 0.09) < 1e-6  # measured 9e-10
 
 
-def test_jacobian_equals_finite_differences(identification_obs):
-    """The sensitivities identify uses (same padded layout, so the same compiled code)."""
+def test_identify_recovers_every_machine(three_obs):
+    """All six parameters of the lossy 3-machine case from noise-free angles (measured relative
+    errors 4e-10 in m, 2e-9 in d; 20 s cold, most of it compiling the sensitivities, 0.9 s warm)."""
+    require("diffrax")
+    est = make_solver("diffrax", THREE, "tight").identify(three_obs)
+    assert est.success, est.message
+    assert est.m.shape == est.d.shape == (3,)
+    assert _max_rel(est.m, THREE.m) < 1e-6
+    assert _max_rel(est.d, THREE.d) < 1e-6
+
+
+def test_machine_count_mismatch_names_obs_delta():
+    require("diffrax")
+    obs = Observations(THREE_T[:5], np.full(5, 0.15), np.zeros((5, 1)))
+    with pytest.raises(ValueError, match=r"obs\.delta"):
+        make_solver("diffrax", THREE, "tight").identify(obs)
+
+
+def test_jacobian_equals_finite_differences(three_obs):
+    """The sensitivities identify uses, w.r.t. all 2n parameters (same padded layout as the
+    identification above, so the same compiled code)."""
     import jax
 
-    from systems.model import smib_system
     from solvers.classical import ObservationLayout
-    from solvers.diffrax_ode import _compiled, _pad, bucket
+    from solvers.diffrax_ode import Structure, _compiled, _pad, bucket
 
-    solver = make_solver("diffrax", SMIB_IDENTIFICATION, "tight")
-    layout = ObservationLayout.of(identification_obs)
+    require("diffrax")
+    solver = make_solver("diffrax", THREE, "tight")
+    layout = ObservationLayout.of(three_obs)
     t, p1 = _pad(layout.t, bucket(layout.t.size)), _pad(layout.P1, bucket(layout.P1.size))
-    values, sensitivities = solver._functions(smib_system(SMIB_IDENTIFICATION))
-    assert (values, sensitivities) == _compiled(smib_system(SMIB_IDENTIFICATION), "dopri8", "stacked", True, 16384)
-    m, d, h = 0.18, 0.09, 1e-6
+    values, sensitivities = solver._functions(Structure.of(THREE))
+    assert (values, sensitivities) == _compiled(Structure.of(THREE), "dopri8", "stacked", True, 16384)
+    # identification's trial cases share the compilation: only m, d (and p_m) differ
+    assert Structure.of(THREE.with_params(0.5, 0.2)) == Structure.of(THREE)
+    n, h = THREE.n, 1e-6
+    theta = np.array(THREE.m + THREE.d)
+    p_m = np.array(THREE.p_m)
     with jax.enable_x64(True):
-        _, ok, jac = sensitivities(m, d, 1e-12, 1e-14, 0.0, t, p1)
-        sim = [np.asarray(values(np.array([mm]), np.array([dd]), 1e-12, 1e-14, 0.0, t, p1)[0])
-               for mm, dd in ((m + h, d), (m - h, d), (m, d + h), (m, d - h))]
+        y, ok, jac = sensitivities(theta[:n], theta[n:], p_m, 1e-12, 1e-14, 0.0, t, p1)
+        fd = []
+        for col in range(2 * n):
+            step = np.zeros(2 * n)
+            step[col] = h
+            plus, minus = (np.asarray(values(x[:n], x[n:], p_m, 1e-12, 1e-14, 0.0, t, p1)[0])
+                           for x in (theta + step, theta - step))
+            fd.append((plus - minus) / (2 * h))
     assert np.asarray(ok).all()
-    fd = np.stack([(sim[0] - sim[1]) / (2 * h), (sim[2] - sim[3]) / (2 * h)], axis=-1)
-    jac = np.asarray(jac)
+    jac, fd = np.asarray(jac), np.stack(fd, axis=-1)
+    assert jac.shape == (p1.size, t.size, 2 * n, 2 * n)
     assert np.abs(jac - fd).max() <= 1e-5 * np.abs(fd).max()
+    np.testing.assert_allclose(np.asarray(y)[..., :n], reference(THREE, t, p1)[0], rtol=0, atol=1e-9)
 
 
 BAD_OPTIONS = [
@@ -162,7 +248,7 @@ def test_too_few_steps_raise_solve_error():
     """Stacked: the failing P1 is found by solving each alone (vmap names it directly)."""
     solver = _fitted(max_steps=5)
     with pytest.raises(SolveError, match=r"diffrax: .*failed at P1=0\.08.*max_steps=5"):
-        solver.solve(np.linspace(0.0, 20.0, 201), np.linspace(0.08, 0.18, 12))
+        solver.solve(np.linspace(0.0, 20.0, 201), np.linspace(0.08, 0.18, N_P1))
 
 
 def test_failed_integration_names_p1(tight):

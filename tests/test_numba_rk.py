@@ -1,5 +1,6 @@
-"""numba-rk: accuracy of each method against the reference and a closed form, RK4's order, the
-sensitivities, identification, option checks and failures."""
+"""numba-rk: accuracy of each method against the reference and a closed form (the SMIB and a lossy
+three-machine system, with and without an infinite bus), RK4's order, the sensitivities,
+identification of every machine, option checks and failures."""
 
 from __future__ import annotations
 
@@ -10,16 +11,31 @@ import numpy as np
 import pytest
 
 from harness import metrics
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, standard_grid
-from systems.reference import reference
 from harness.suites.identification import observations
 from solvers import make_solver
 from solvers import numba_kernels as kernels
 from solvers.base import SolveError
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
+from systems.reference import reference
 
 pytest.importorskip("numba")
 
 TIGHT = {"dop853": {}, "dopri5": {"method": "dopri5"}, "rk4": {"method": "rk4", "dt": 0.002}}
+
+# A lossy three-machine system (Kron-reduced G and B with the usual signs: off-diagonal G < 0 and
+# B > 0), started away from equilibrium. NET has no infinite bus: its mechanical powers do not
+# balance the losses, so the angles also drift together. BUS ties machines 1 and 3 to an infinite
+# bus through a lossy branch (g_inf, b_inf), the c_inf and s_inf terms of P_e.
+NET = Case(
+    name="three-machine lossy", m=(0.3, 0.2, 0.25), d=(0.1, 0.08, 0.12), delta0=(0.1, -0.05, 0.2),
+    omega0=(0.1, 0.0, -0.1), p_m=(0.1, 0.05, -0.12), E=(1.05, 1.0, 0.98),
+    G=((0.12, -0.05, -0.04), (-0.05, 0.10, -0.03), (-0.04, -0.03, 0.09)),
+    B=((-2.1, 0.9, 0.7), (0.9, -1.8, 0.6), (0.7, 0.6, -1.6)),
+    g_inf=(0.0, 0.0, 0.0), b_inf=(0.0, 0.0, 0.0), t_final=5.0, p1_min=0.08, p1_max=0.18,
+    m_box=((0.05, 1.0),) * 3, d_box=((0.02, 0.5),) * 3,
+)
+BUS = dataclasses.replace(NET, name="three-machine lossy, infinite bus", g_inf=(0.05, 0.0, 0.02),
+                          b_inf=(1.0, 0.0, 0.5))
 
 
 def _fitted(config: str = "default", case=SMIB_INFERENCE, **options):
@@ -39,15 +55,53 @@ def test_tight_matches_reference(method):
 
 @pytest.mark.parametrize("method", TIGHT)
 def test_linear_case_matches_closed_form(method):
-    case = dataclasses.replace(SMIB_INFERENCE, b=0.0)
-    m, d, delta0, omega0 = case.m, case.d, case.delta0, case.omega0
+    case = dataclasses.replace(SMIB_INFERENCE, b_inf=(0.0,))
+    (m,), (d,), (delta0,), (omega0,) = case.m, case.d, case.delta0, case.omega0
     t, P1 = np.array([7.3, 0.0, 20.0, 2.5]), np.array([0.08, 0.18])
     traj = _fitted("tight", case=case, **TIGHT[method]).solve(t, P1)
+    assert traj.delta.shape == traj.omega.shape == (2, 4, 1)
     v = P1[:, None] / d
     decay = np.exp(-d * t / m)
-    np.testing.assert_allclose(traj.delta, delta0 + v * t + (omega0 - v) * (m / d) * (1 - decay),
-                               rtol=1e-9, atol=1e-11)
-    np.testing.assert_allclose(traj.omega, v + (omega0 - v) * decay, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(traj.delta[..., 0],
+                               delta0 + v * t + (omega0 - v) * (m / d) * (1 - decay), rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(traj.omega[..., 0], v + (omega0 - v) * decay, rtol=1e-9, atol=1e-11)
+
+
+# (config, options, rel_l2 bound): tight at each method, and the ode45 tolerances and RK4's 0.1 s
+ACCURACY = [pytest.param("tight", options, 1e-9, id=f"tight-{method}") for method, options in TIGHT.items()] + [
+    pytest.param("default", {}, 1e-3, id="default"), pytest.param("rk4", {}, 1e-3, id="rk4-0.1s")]
+
+
+@pytest.mark.parametrize("case", [NET, BUS], ids=["no-bus", "bus"])
+@pytest.mark.parametrize("config,options,bound", ACCURACY)
+def test_network_matches_reference(case, config, options, bound):
+    """Every machine of a lossy three-machine system, generator 1 at P1 and the others at p_m."""
+    t, P1 = np.array([5.0, 0.0, 1.3, 2.5, 4.0, 2.5]), np.array([0.08, 0.13, 0.18])
+    traj = _fitted(config, case=case, **options).solve(t, P1)
+    ref_delta, ref_omega = reference(case, t, P1)
+    assert traj.delta.shape == traj.omega.shape == (3, 6, 3)
+    assert metrics.rel_l2(traj.delta, ref_delta) <= bound
+    assert metrics.rel_l2(traj.omega, ref_omega) <= bound
+
+
+def test_network_points_and_parallel_batch():
+    """solve_points gives (n_s, n) rows, each machine's state at its (t, P1) (to the tolerance: a
+    point integrates to its own t, with other steps than the grid); the parallel kernel gives the
+    serial one's bits."""
+    solver = _fitted("tight", case=BUS)
+    t, P1 = np.array([4.5, 0.7, 2.0]), np.array([0.09, 0.17, 0.09])
+    points = solver.solve_points(t, P1)
+    assert points.delta.shape == points.omega.shape == (3, 3)
+    grid = solver.solve(np.unique(t), np.unique(P1))
+    for i in range(3):
+        row, col = np.searchsorted(np.unique(P1), P1[i]), np.searchsorted(np.unique(t), t[i])
+        np.testing.assert_allclose(points.delta[i], grid.delta[row, col], rtol=1e-8, atol=1e-9)
+        np.testing.assert_allclose(points.omega[i], grid.omega[row, col], rtol=1e-8, atol=1e-9)
+    parallel = kernels.kernel(kernels.DOP853, False, True, BUS.n)
+    states, failed, _ = parallel(grid.t, grid.P1, solver._system, solver._options)
+    assert failed == -1
+    np.testing.assert_array_equal(states[0], grid.delta)
+    np.testing.assert_array_equal(states[1], grid.omega)
 
 
 def test_rk4_is_fourth_order():
@@ -64,32 +118,53 @@ def test_precision_sweep():
     assert make_solver("numba-rk", SMIB_INFERENCE).precision_sweep([1e-4]) == [{"rtol": 1e-4, "atol": 1e-4 * 1e-3}]
 
 
+@pytest.mark.parametrize("case", [SMIB_INFERENCE, NET, BUS], ids=["smib", "no-bus", "bus"])
 @pytest.mark.parametrize("method", TIGHT)
-def test_sensitivities_equal_finite_differences(method):
-    solver = _fitted("tight", **TIGHT[method])
-    t, P1 = np.linspace(0.0, 20.0, 9), np.array([0.1, 0.17])
-    run = solver._sensitivities
+def test_sensitivities_equal_finite_differences(method, case):
+    """d(delta, omega)/d(m_1..n, d_1..n), every column, against central differences (step 1e-6)."""
+    solver = _fitted("tight", case=case, **TIGHT[method])
+    t, P1 = np.linspace(0.0, case.t_final, 9), np.array([0.1, 0.17])
+    n = case.n
 
-    def states(m, d):
+    def states(params):
         system = solver._system.copy()
-        system[0, :2] = m, d
-        out, failed, _ = run(t, P1[:, None], system, solver._options)
+        system[:, kernels.M], system[:, kernels.D] = params[:n], params[n:]
+        out, failed, _ = solver._sensitivities(t, P1, system, solver._options)
         assert failed == -1
-        return out
+        # blocks: delta, omega, then d delta / d p_j, d omega / d p_j for each j -> p_j last
+        return out[0], out[1], np.moveaxis(out[2::2], 0, -1), np.moveaxis(out[3::2], 0, -1)
 
-    m, d = 0.3, 0.12
-    base = states(m, d)
-    for row, (dm, dd) in ((2, (1e-6, 0.0)), (4, (0.0, 1e-6))):
-        fd = (states(m + dm, d + dd)[:2] - states(m - dm, d - dd)[:2]) / (2e-6)
-        np.testing.assert_allclose(base[row:row + 2], fd, rtol=1e-5, atol=1e-5)
+    params = np.array([0.3, 0.12]) if n == 1 else np.concatenate([NET.m, NET.d]) * 1.1
+    _, _, jd, jo = states(params)
+    assert jd.shape == jo.shape == (2, 9, n, 2 * n)
+    for col in range(2 * n):
+        step = np.zeros(2 * n)
+        step[col] = 1e-6
+        (d_plus, o_plus, _, _), (d_minus, o_minus, _, _) = states(params + step), states(params - step)
+        np.testing.assert_allclose(jd[..., col], (d_plus - d_minus) / 2e-6, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(jo[..., col], (o_plus - o_minus) / 2e-6, rtol=1e-5, atol=1e-5)
 
 
 def test_identify_recovers_m_and_d():
     obs = observations(SMIB_IDENTIFICATION.with_params(0.25, 0.15), 100, 0.0, seed=1000)
     est = make_solver("numba-rk", SMIB_INFERENCE, "tight").identify(obs)
     assert est.success, est.message
-    assert metrics.rel_error(est.m, 0.25) < 1e-4
-    assert metrics.rel_error(est.d, 0.15) < 1e-4
+    assert est.m.shape == est.d.shape == (1,)
+    assert metrics.rel_error(est.m[0], 0.25) < 1e-4
+    assert metrics.rel_error(est.d[0], 0.15) < 1e-4
+
+
+@pytest.mark.parametrize("case", [NET, BUS], ids=["no-bus", "bus"])
+def test_identify_recovers_every_machine(case):
+    """Every machine's m and d from noise-free reference angles on a small grid (60 samples)."""
+    t, P1 = np.meshgrid(np.linspace(0.25, 5.0, 20), [0.08, 0.13, 0.18])
+    delta, _ = reference(case, t[0], P1[:, 0])
+    obs = Observations(t.ravel(), P1.ravel(), delta.reshape(-1, case.n))
+    est = make_solver("numba-rk", case, "tight").identify(obs)
+    assert est.success, est.message
+    assert est.m.shape == est.d.shape == (3,) and est.m_ci95.shape == (3, 2)
+    np.testing.assert_allclose(est.m, case.m, rtol=1e-6)
+    np.testing.assert_allclose(est.d, case.d, rtol=1e-6)
 
 
 def test_repeated_and_shuffled_times_and_parallel():
@@ -98,8 +173,9 @@ def test_repeated_and_shuffled_times_and_parallel():
     solver = _fitted("tight")
     serial = solver.solve(t, P1)
     parallel = kernels.kernel(kernels.DOP853, False, True)  # the kernel of parallel=True (compiles ~5 s)
-    states, failed, _ = parallel(t, P1[:, None], solver._system, solver._options)
+    states, failed, _ = parallel(t, P1, solver._system, solver._options)
     assert failed == -1
+    assert serial.delta.shape == (5, 6, 1)
     np.testing.assert_array_equal(serial.delta, states[0])
     ref_delta, ref_omega = reference(SMIB_INFERENCE, t, P1)
     np.testing.assert_allclose(serial.delta, ref_delta, rtol=1e-9, atol=1e-11)
