@@ -1,21 +1,34 @@
 """What the asv benchmarks share: the harness's settings, specs and cases, the parameter grid
-(solver x config) and the two expensive preparations that run once per asv run (`setup_cache`).
+(case x solver x config) and the two expensive preparations that run once per asv run
+(`setup_cache`).
 
 Nothing here is a second implementation of a measurement. Timings call the adapters' own `fit`,
 `solve` and `identify` on the harness's queries (`harness.suites.latency.queries`) and observations
-(`harness.suites.identification.observations`); errors are the rows of the harness's suites
+(`harness.suites.identification.pair_observations`); errors are the rows of the harness's suites
 (`harness.suites.accuracy.accuracy`, `harness.suites.identification.identification`, which compute
 them with `harness.metrics` against `systems.reference`); trained models go through the harness's
 model cache (`harness.runner.fit_or_load`).
 
-Parameters: `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
+Parameters: `case` is every forward case of the run's settings (`SETTINGS.cases`: the SMIB
+"smib-inference" and the multi-machine networks of `systems.grids`); the identification benchmarks
+identify on that case's identification case (`harness.suites.identification_case`: the SMIB's
+"smib-identification" with the run's (m, d) pairs, a network itself with its own parameters as the
+truth). `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
 `harness.runs.default_specs` (the adapter's named config plus its option overrides other than the
-training budget, e.g. "default,batch=stacked"). A pair that the harness does not run, or an adapter
-whose optional dependency is missing, is skipped (asv: NotImplementedError in setup); a pair whose
-preparation failed fails (RuntimeError in setup), so `asv run` exits non-zero.
+training budget, e.g. "default,batch=stacked"). A triple that the harness does not run (a pair it
+does not run, or a spec that `Settings.measures` leaves out on the case, e.g. a PINN config other
+than `network_pinn_configs` on a network) is skipped without a process (asv `skip_params`); an
+adapter whose optional dependency is missing is skipped in setup (NotImplementedError, with the
+reason in asv's output). A case that fails to build (see `CASE_ERRORS`) or a triple whose
+preparation failed fails its own benchmarks (RuntimeError in setup), so `asv run` exits non-zero.
+
+The cases are built when this module is imported: asv imports the benchmarks once in its
+forkserver, which every benchmark process is forked from, so a network's power flow (and the
+import of pandapower) is paid once per run rather than once per benchmark.
 
 Quick mode: `SWINGBENCH_ASV_QUICK=1` (set by `make asv-quick`; asv itself does not tell a
-benchmark that it runs with --quick) selects the harness's QUICK settings and small budgets.
+benchmark that it runs with --quick) selects the harness's QUICK settings (its cases, SMIB and
+wscc9) and small budgets, and identifies on the single-machine case only (see `IDENTIFICATION`).
 """
 
 from __future__ import annotations
@@ -23,28 +36,30 @@ from __future__ import annotations
 import os
 import sys
 import traceback
-from dataclasses import replace
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from benchmarks import THREADS
-from systems.cases import SMIB_INFERENCE, Observations
 from harness.runner import fit_or_load
 from harness.runs import DEFAULT, QUICK, Settings, SolverSpec, default_specs
-from harness.suites import SUITES
-from harness.suites.accuracy import accuracy
+from harness.suites import identification_case
+from harness.suites.accuracy import COI_DELTA, accuracy
 from harness.suites.identification import identification, pair_observations
 from harness.suites.latency import T1_S, queries
 from solvers import SOLVERS, UNAVAILABLE
 from solvers.base import AbstractSolver
+from systems.cases import CASES, Case, Observations
 
 __all__ = [
-    "FIT_BUDGET", "FORWARD_CASE", "IDENTIFICATION_CASE", "PARAMS", "PARAM_NAMES", "QUICK_MODE",
-    "SETTINGS", "SETUP_CACHE_TIMEOUT", "SKIP_PARAMS", "SPECS", "cached_entry", "fit_options",
-    "forward_queries", "identification_observations", "identify_all", "spec_for", "train_and_score",
-    "warm_solver",
+    "CASE_ERRORS", "COI", "COI_SKIP_PARAMS", "FIT_BUDGET", "FORWARD", "FORWARD_SKIP_PARAMS",
+    "IDENTIFICATION", "IDENTIFICATION_SKIP_PARAMS", "PARAMS", "PARAM_NAMES", "QUICK_MODE",
+    "SETTINGS", "SETUP_CACHE_TIMEOUT", "SPECS", "Measured", "cached_entry", "cached_observations",
+    "case_for", "fit_options", "forward_queries", "identification_observations", "identify_all",
+    "spec_for", "train_and_score", "warm_solver",
 ]
 
 QUICK_MODE = os.environ.get("SWINGBENCH_ASV_QUICK", "").strip().lower() not in ("", "0", "false", "no")
@@ -59,12 +74,6 @@ FIT_BUDGET: dict[str, Any] = {
     "max_iterations": 5 if QUICK_MODE else 50,
     "progress": False,
 }
-SETUP_CACHE_TIMEOUT = 900.0 if QUICK_MODE else 3600.0
-
-# The forward case is the CLI's default (`swingbench run --case smib-inference`); identification
-# runs on the case of its suite, with the (m, d) pair and noise level of the harness's quick run.
-FORWARD_CASE = SMIB_INFERENCE
-IDENTIFICATION_CASE = SUITES["identification"].case
 
 
 def _repo_root() -> Path:
@@ -84,6 +93,33 @@ SETTINGS: Settings = replace(
     skip_identify_configs=(),
     cache_dir=_repo_root() / ".cache" / "models",
 )
+# One `setup_cache` (every spec on every case: fits, accuracy, identifications) may take this long
+# (s): the budget of one case's preparation (900 s quick, 3600 s otherwise) per forward case.
+SETUP_CACHE_TIMEOUT = (900.0 if QUICK_MODE else 3600.0) * len(SETTINGS.cases)
+
+
+def _build_cases(names: tuple[str, ...]) -> tuple[dict[str, Case], dict[str, str]]:
+    """name -> Case for every forward case that builds, and name -> why for those that do not (a
+    network whose data or power flow fails): such a case fails its own benchmarks only."""
+    built, errors = {}, {}
+    for name in names:
+        try:
+            built[name] = CASES[name]
+        except Exception as exc:  # noqa: BLE001 - one case's failure fails its benchmarks only
+            traceback.print_exc()
+            errors[name] = f"{type(exc).__name__}: {exc}"
+            print(f"[swingbench asv] case {name}: cannot be built: {errors[name]}", file=sys.stderr)
+    return built, errors
+
+
+_CASES, CASE_ERRORS = _build_cases(SETTINGS.cases)
+
+
+def case_for(name: str) -> Case:
+    """The forward case `name`; RuntimeError (asv: failed) when it could not be built."""
+    if name in CASE_ERRORS:
+        raise RuntimeError(f"case {name} cannot be built: {CASE_ERRORS[name]}")
+    return _CASES[name]
 
 
 def _config_label(spec: SolverSpec) -> str:
@@ -97,119 +133,202 @@ SPECS: dict[tuple[str, str], SolverSpec] = {}
 for _spec in default_specs(settings=SETTINGS):
     SPECS.setdefault((_spec.solver, _config_label(_spec)), _spec)
 
-PARAM_NAMES = ["solver", "config"]
-PARAMS = [list(SOLVERS), list(dict.fromkeys(config for _, config in SPECS))]
-# Pairs of an installed adapter that the harness does not run (e.g. scipy-odeint with batch=stacked):
-# asv skips them without running setup or printing a line (`skip_params`); `spec_for` raises
-# NotImplementedError for them too. Pairs of an adapter that is not installed are skipped in setup,
-# with the reason ("skipped: torch not installed") in asv's output.
-SKIP_PARAMS = [(solver, config) for solver in PARAMS[0] for config in PARAMS[1]
-               if SOLVERS.get(solver) is not None and (solver, config) not in SPECS]
+PARAM_NAMES = ["case", "solver", "config"]
+PARAMS = [list(SETTINGS.cases), list(SOLVERS), list(dict.fromkeys(config for _, config in SPECS))]
 
 
-def spec_for(solver: str, config: str) -> SolverSpec:
-    """The harness's spec for a parameter pair; NotImplementedError (asv: skipped) when the adapter
-    is not installed or the pair is not one the harness runs."""
+@dataclass(frozen=True)
+class Measured:
+    """What a group of benchmarks measures for a forward case: the case it runs on (`case_of`: the
+    forward case itself, or its identification case) and whether it runs on that forward case at
+    all (`runs_on`; `why_not` says why not)."""
+
+    case_of: Callable[[Case], Case]
+    runs_on: Callable[[Case], bool]
+    why_not: str = ""
+
+
+FORWARD = Measured(lambda case: case, lambda case: True)
+# Identification of a network fits 2n parameters by repeated simulation of every sampled P1: up to
+# minutes a call for some adapters (wscc9, 2 busy cores: scipy-rk45 tight ~110 s, scipy-odeint
+# ~400 s), and the benchmarks identify three times (setup_cache, warm-up, timed). `make asv-quick`
+# identifies on the single-machine case only; `make asv` on every case.
+IDENTIFICATION = Measured(identification_case, lambda case: not QUICK_MODE or case.n == 1,
+                          "quick mode identifies on single-machine cases only")
+# The angles relative to the centre of inertia: a system without an infinite bus only.
+COI = Measured(lambda case: case, lambda case: not case.has_infinite_bus,
+               "angles relative to the centre of inertia are measured without an infinite bus only")
+
+
+def _skip_params(measured: Measured) -> list[tuple[str, str, str]]:
+    """The triples of an installed adapter that asv skips without a process (`skip_params`): a
+    (solver, config) pair the harness does not run (e.g. scipy-odeint with batch=stacked), every
+    triple of a forward case that `measured` does not run on, and a spec that `SETTINGS.measures`
+    leaves out on the case measured (e.g. a PINN config other than `network_pinn_configs` on a
+    network). A case that could not be built skips nothing: its benchmarks fail in setup. Adapters
+    that are not installed are skipped in setup instead, with the reason ("skipped: torch not
+    installed") in asv's output."""
+    skipped = []
+    for name in PARAMS[0]:
+        case = _CASES.get(name)
+        for solver in PARAMS[1]:
+            if SOLVERS.get(solver) is None:
+                continue
+            for config in PARAMS[2]:
+                spec = SPECS.get((solver, config))
+                if spec is None or (case is not None and (
+                        not measured.runs_on(case) or not SETTINGS.measures(spec, measured.case_of(case)))):
+                    skipped.append((name, solver, config))
+    return skipped
+
+
+FORWARD_SKIP_PARAMS = _skip_params(FORWARD)
+IDENTIFICATION_SKIP_PARAMS = _skip_params(IDENTIFICATION)
+COI_SKIP_PARAMS = _skip_params(COI)
+
+
+def spec_for(case: str, solver: str, config: str, measured: Measured = FORWARD) -> SolverSpec:
+    """The harness's spec for a parameter triple; NotImplementedError (asv: skipped) when the adapter
+    is not installed, the pair is not one the harness runs, `measured` does not run on the case or
+    `SETTINGS.measures` leaves the spec out on the case measured; RuntimeError (asv: failed) when
+    the case could not be built."""
     if SOLVERS.get(solver) is None:
         raise NotImplementedError(f"{solver}: {UNAVAILABLE.get(solver, 'not registered')}")
-    try:
-        return SPECS[(solver, config)]
-    except KeyError:
-        raise NotImplementedError(f"{solver} is not run with config {config!r}") from None
+    spec = SPECS.get((solver, config))
+    if spec is None:
+        raise NotImplementedError(f"{solver} is not run with config {config!r}")
+    forward = case_for(case)
+    if not measured.runs_on(forward):
+        raise NotImplementedError(f"{case}: {measured.why_not}")
+    target = measured.case_of(forward)
+    if not SETTINGS.measures(spec, target):
+        raise NotImplementedError(f"{spec.label} is not measured on {target.name}")
+    return spec
 
 
-def cached_entry(cache: dict, solver: str, config: str) -> dict:
-    """The `setup_cache` result for a parameter pair: skipped as `spec_for` says, RuntimeError (asv:
-    failed) when its preparation failed."""
-    spec = spec_for(solver, config)
-    entry = cache.get((solver, config))
+def cached_entry(cache: dict, case: str, solver: str, config: str, measured: Measured = FORWARD) -> dict:
+    """The `setup_cache` result for a parameter triple: skipped or failed as `spec_for` says,
+    RuntimeError (asv: failed) when its preparation failed."""
+    spec = spec_for(case, solver, config, measured)
+    entry = cache.get((case, solver, config))
     if entry is None:
-        raise RuntimeError(f"{spec.label}: setup_cache has no result for it")
+        raise RuntimeError(f"{spec.label} on {case}: setup_cache has no result for it")
     if "error" in entry:
-        raise RuntimeError(f"{spec.label}: preparation failed in setup_cache: {entry['error']}")
+        raise RuntimeError(f"{spec.label} on {case}: preparation failed in setup_cache: {entry['error']}")
     return entry
 
 
-def _failure(spec: SolverSpec, exc: BaseException) -> dict:
+def _failure(spec: SolverSpec, case: Case, exc: BaseException) -> dict:
     traceback.print_exc()
-    print(f"[swingbench asv] {spec.label}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+    print(f"[swingbench asv] {spec.label} on {case.name}: failed: {type(exc).__name__}: {exc}", file=sys.stderr)
     return {"error": f"{type(exc).__name__}: {exc}"}
 
 
-def _installed_specs():
-    return [(key, spec) for key, spec in SPECS.items() if SOLVERS.get(spec.solver) is not None]
+def _measured(measured: Measured) -> list[tuple[tuple[str, str, str], SolverSpec, Case]]:
+    """((case, solver, config), spec, the case measured) of every installed spec that `SETTINGS`
+    measures on every forward case that built and that `measured` runs on, in the run's order."""
+    out = []
+    for name, case in _CASES.items():
+        if not measured.runs_on(case):
+            continue
+        target = measured.case_of(case)
+        out += [((name, *key), spec, target) for key, spec in SPECS.items()
+                if SOLVERS.get(spec.solver) is not None and SETTINGS.measures(spec, target)]
+    return out
 
 
 def train_and_score() -> dict:
-    """Once per asv run (`setup_cache` of the forward benchmarks): fit every installed spec on the
-    forward case through the harness's model cache (an adapter that trains is trained with
-    SETTINGS' budget and saved, or loaded when a model of the same config, options, seed, case and
-    code version is there) and score it with the accuracy suite against the tight reference.
-    Returns {(solver, config): {"fit_s", "fit_message", "rel_l2_delta", "rel_l2_omega"} or {"error"}}."""
+    """Once per asv run (`setup_cache` of the forward benchmarks): fit every installed spec that the
+    run measures on each forward case through the harness's model cache (an adapter that trains is
+    trained with SETTINGS' budget and saved, or loaded when a model of the same config, options,
+    seed, case and code version is there) and score it with the accuracy suite against the tight
+    reference. Returns {(case, solver, config): {"fit_s", "fit_message", "rel_l2_delta",
+    "rel_l2_omega", and "rel_l2_delta_coi" on a case without an infinite bus} or {"error"}}."""
+    names = {"delta": "rel_l2_delta", "omega": "rel_l2_omega", COI_DELTA: "rel_l2_delta_coi"}
     out = {}
-    for key, spec in _installed_specs():
+    for key, spec, case in _measured(FORWARD):
         try:
-            solver = spec.make(FORWARD_CASE)
+            solver = spec.make(case)
             report = fit_or_load(solver, SETTINGS)
-            rows = accuracy(solver, FORWARD_CASE, SETTINGS)
+            rows = accuracy(solver, case, SETTINGS)
         except Exception as exc:  # noqa: BLE001 - one spec's failure fails its benchmarks only
-            out[key] = _failure(spec, exc)
+            out[key] = _failure(spec, case, exc)
             continue
-        scores = {f"rel_l2_{row['quantity']}": row["rel_l2"] for row in rows if row["against"] == "reference"}
+        scores = {names[row["quantity"]]: row["rel_l2"] for row in rows
+                  if row["against"] == "reference" and row["quantity"] in names}
         out[key] = {"fit_s": report.seconds, "fit_message": report.message, **scores}
-        print(f"[swingbench asv] {spec.label}: fit {report.seconds:.3g} s {report.message}".rstrip(),
+        print(f"[swingbench asv] {spec.label} on {case.name}: fit {report.seconds:.3g} s {report.message}".rstrip(),
               file=sys.stderr)
     return out
 
 
 def identify_all() -> dict:
-    """Once per asv run (`setup_cache` of the identification errors): the identification suite for
-    every installed spec over SETTINGS' (m, d) pairs and noise levels. Returns
-    {(solver, config): {"m_rel_error", "d_rel_error" (the worst over the rows), "rows"} or {"error"}}."""
-    out = {}
-    for key, spec in _installed_specs():
+    """Once per asv run (`setup_cache` of the identification benchmarks): the observations that
+    `time_identify` identifies from on each forward case's identification case (their reference
+    costs a network a minute, once here rather than in every benchmark process), and the
+    identification suite for every installed spec that the run measures there (the SMIB's over
+    SETTINGS' (m, d) pairs, a network's on its own parameters; SETTINGS' noise levels). Returns
+    {("observations", case): Observations (or ("observations failed", case): why),
+    (case, solver, config): {"m_rel_error", "d_rel_error" (the worst over machines and rows), "rows"}
+    or {"error"}}, keyed by the forward case."""
+    out: dict = {}
+    for name in (name for name, case in _CASES.items() if IDENTIFICATION.runs_on(case)):
         try:
-            rows = identification(spec.make(IDENTIFICATION_CASE), IDENTIFICATION_CASE, SETTINGS)
+            out[("observations", name)] = identification_observations(name)
+        except Exception as exc:  # noqa: BLE001 - one case's failure fails its benchmarks only
+            traceback.print_exc()
+            out[("observations failed", name)] = f"{type(exc).__name__}: {exc}"
+    for key, spec, case in _measured(IDENTIFICATION):
+        try:
+            rows = identification(spec.make(case), case, SETTINGS)
         except Exception as exc:  # noqa: BLE001
-            out[key] = _failure(spec, exc)
+            out[key] = _failure(spec, case, exc)
             continue
         out[key] = {"m_rel_error": max(row["m_rel_error"] for row in rows),
                     "d_rel_error": max(row["d_rel_error"] for row in rows), "rows": rows}
     return out
 
 
-def forward_queries() -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """(t, P1) of the latency suite's queries that asv times: "grid" (100 x 201), "single point"
-    (t1 = T1_S = 10 s, the middle P1) and "one trajectory" (201 times, the middle P1)."""
-    chosen = {}
-    for kind, _name, t, P1 in queries(FORWARD_CASE, SETTINGS):
-        if kind == "grid":
-            chosen.setdefault("grid", (t, P1))
-        elif kind == "single point" and t.size == 1 and t[0] == T1_S:
-            chosen.setdefault("single point", (t, P1))
-        elif kind == "throughput" and P1.size == 1:
-            chosen.setdefault("one trajectory", (t, P1))
-    missing = {"grid", "single point", "one trajectory"} - set(chosen)
-    if missing:
-        raise RuntimeError(f"harness.suites.latency.queries has no {', '.join(sorted(missing))} query")
-    return chosen
+_QUERIES: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
 
 
-_WARM: dict[tuple[str, str], tuple[AbstractSolver, set[str]]] = {}
+def forward_queries(case: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """(t, P1) of the latency suite's queries on a forward case that asv times: "grid" (100 x 201),
+    "single point" (t1 = T1_S = 10 s, within every case's horizon; the middle P1) and "one
+    trajectory" (201 times, the middle P1)."""
+    if case not in _QUERIES:
+        chosen = {}
+        for kind, _name, t, P1 in queries(case_for(case), SETTINGS):
+            if kind == "grid":
+                chosen.setdefault("grid", (t, P1))
+            elif kind == "single point" and t.size == 1 and t[0] == T1_S:
+                chosen.setdefault("single point", (t, P1))
+            elif kind == "throughput" and P1.size == 1:
+                chosen.setdefault("one trajectory", (t, P1))
+        missing = {"grid", "single point", "one trajectory"} - set(chosen)
+        if missing:
+            raise RuntimeError(f"harness.suites.latency.queries has no {', '.join(sorted(missing))} query on {case}")
+        _QUERIES[case] = chosen
+    return _QUERIES[case]
 
 
-def warm_solver(cache: dict, solver: str, config: str, query: str) -> tuple[AbstractSolver, np.ndarray, np.ndarray]:
-    """A fitted adapter (loaded from the model cache that `train_and_score` filled) that has answered
-    `query` once (JIT compilation, integrator build), and the query's (t, P1). Kept for the process:
-    asv re-runs setup before every timed call, and a warm adapter stays warm."""
-    cached_entry(cache, solver, config)
-    spec = SPECS[(solver, config)]
-    if (solver, config) not in _WARM:
-        adapter = spec.make(FORWARD_CASE)
+_WARM: dict[tuple[str, str, str], tuple[AbstractSolver, set[str]]] = {}
+
+
+def warm_solver(cache: dict, case: str, solver: str, config: str, query: str,
+                ) -> tuple[AbstractSolver, np.ndarray, np.ndarray]:
+    """A fitted adapter on a forward case (loaded from the model cache that `train_and_score`
+    filled) that has answered `query` once (JIT compilation, integrator build), and the query's
+    (t, P1). Kept for the process: asv re-runs setup before every timed call, and a warm adapter
+    stays warm."""
+    cached_entry(cache, case, solver, config)
+    key = (case, solver, config)
+    if key not in _WARM:
+        adapter = SPECS[(solver, config)].make(case_for(case))
         fit_or_load(adapter, SETTINGS)
-        _WARM[(solver, config)] = (adapter, set())
-    adapter, warmed = _WARM[(solver, config)]
-    t, P1 = forward_queries()[query]
+        _WARM[key] = (adapter, set())
+    adapter, warmed = _WARM[key]
+    t, P1 = forward_queries(case)[query]
     if query not in warmed:
         adapter.solve(t, P1)
         warmed.add(query)
@@ -222,7 +341,18 @@ def fit_options(spec: SolverSpec) -> dict[str, Any]:
     return {k: v for k, v in FIT_BUDGET.items() if k in options}
 
 
-def identification_observations() -> Observations:
-    """The observations of the identification suite's first row: the first (m, d) pair of
-    SETTINGS.pairs and first noise level."""
-    return pair_observations(IDENTIFICATION_CASE, SETTINGS, 0, SETTINGS.noise_levels[0])
+def cached_observations(cache: dict, case: str) -> Observations:
+    """The observations of `identification_observations` on a forward case that `identify_all`
+    prepared in `setup_cache`; RuntimeError (asv: failed) when that failed."""
+    if ("observations failed", case) in cache:
+        raise RuntimeError(f"{case}: observations failed in setup_cache: {cache[('observations failed', case)]}")
+    if ("observations", case) not in cache:
+        raise RuntimeError(f"{case}: setup_cache has no observations for it")
+    return cache[("observations", case)]
+
+
+def identification_observations(case: str) -> Observations:
+    """The observations of the identification suite's first row on a forward case's identification
+    case: its first truth (the first (m, d) pair of SETTINGS.pairs on the SMIB, a network's own
+    parameters) at the first noise level, every machine's angle at SETTINGS.n_u samples."""
+    return pair_observations(identification_case(case_for(case)), SETTINGS, 0, SETTINGS.noise_levels[0])

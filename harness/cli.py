@@ -38,9 +38,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="adapters to run (default: every registered one)")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter)")
-    run.add_argument("--case", nargs="+", default=["smib-inference"], metavar="NAME",
-                     help="cases of the forward suites (default: smib-inference); identification always "
-                          "uses smib-identification with the (m, d) pairs")
+    run.add_argument("--case", nargs="+", default=None, metavar="NAME",
+                     help="cases (default: smib-inference and the multi-machine wscc9, kundur4, ieee39; --quick: "
+                          "smib-inference and wscc9); identification of a SMIB case uses smib-identification with "
+                          "the (m, d) pairs, of a multi-machine case the case's own parameters")
     size = run.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",
                       help="smoke test, a few minutes: one seed, 150 PINN iterations, small timing budgets")
@@ -82,13 +83,13 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
-    from systems.cases import CASES
     from harness.report import metadata, write_report
     from harness.runner import execute, interrupted_message, open_results, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs
     from harness.store import atomic_write
     from harness.suites import SUITES
     from solvers import SOLVERS, solver_class
+    from systems.cases import CASES
 
     _known("suite(s)", args.suite, list(SUITES))
     _known("case(s)", args.case, list(CASES))
@@ -96,9 +97,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
     _known("config(s)", args.config, configs)
     suites = args.suite or list(SUITES)
-    cases = [CASES[name] for name in args.case]
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
+    cases = [CASES[name] for name in args.case or settings.cases]
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise SystemExit("swingbench run: no solver/config combination selected")
@@ -113,7 +114,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
-        execute(plan(specs, cases, [SUITES[name] for name in suites]), settings, store, progress=progress,
+        execute(plan(specs, cases, [SUITES[name] for name in suites], settings), settings, store, progress=progress,
                 done=contents.completed if contents else None)  # open_results prepared the resume
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)

@@ -32,8 +32,8 @@ def _legend_beside(ax) -> None:
 
 
 def figure3(frames: dict):
-    """Best and worst trajectory (delta and omega), predicted vs reference, for each PINN
-    configuration's first seed (the paper's figure 3)."""
+    """Best and worst trajectory (delta and omega of every machine, one line each), predicted vs
+    reference, for each PINN configuration's first seed (the paper's figure 3)."""
     acc = ok(frames.get("accuracy"))
     if acc.empty or "best_pred" not in acc:
         return None
@@ -52,10 +52,15 @@ def figure3(frames: dict):
             for spec, (_, r) in zip(specs, sel.iterrows()):
                 key = (r[f"{which}_P1"],)
                 if key not in ref_drawn:
-                    ax.plot(t, r[f"{which}_ref"], color="black", lw=2.5, alpha=0.35,
-                            label=f"reference, P1={r[f'{which}_P1']:.4g}")
+                    ref = np.asarray(r[f"{which}_ref"], float).reshape(t.size, -1)
+                    ax.plot(t, ref, color="black", lw=2.5, alpha=0.35,
+                            label=[f"reference, P1={r[f'{which}_P1']:.4g}"] + ["_"] * (ref.shape[1] - 1))
                     ref_drawn.add(key)
-                ax.plot(t, r[f"{which}_pred"], lw=1.2, ls="--", label=f"{label(r.to_frame().T).iloc[0]}")
+                pred = np.asarray(r[f"{which}_pred"], float).reshape(t.size, -1)
+                lines = ax.plot(t, pred, lw=1.2, ls="--")
+                for line in lines[1:]:
+                    line.set_color(lines[0].get_color())
+                lines[0].set_label(f"{label(r.to_frame().T).iloc[0]}")
             unit = "rad" if quantity == "delta" else "rad/s"
             ax.set_title(f"{which} trajectory: {quantity}")
             ax.set_ylabel(f"{quantity} ({unit})")
@@ -163,7 +168,8 @@ def identification_plot(frames: dict):
                 ax.scatter(h["pair"] + width * (i - (len(specs) - 1) / 2), np.maximum(h[column], 1e-12),
                            marker=marker[kind], color=colour[spec], s=22)
         pairs = df.drop_duplicates("pair").sort_values("pair")
-        ax.set_xticks(pairs["pair"], [f"{m:.3g}\n{d:.3g}" for m, d in zip(pairs["m_true"], pairs["d_true"])],
+        ax.set_xticks(pairs["pair"], [f"{m:.3g}\n{d:.3g}" if np.isscalar(m) else "the case's\nown (m_k, d_k)"
+                                      for m, d in zip(pairs["m_true"], pairs["d_true"])],
                       fontsize=7)
         ax.set_yscale("log")
         ax.set_xlabel("(m, d) pair: m above, d below")
@@ -182,8 +188,8 @@ PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1"
          "crossover": crossover_plot, "identification": identification_plot}
 
 
-def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path) -> list[str]:
-    """Write every plot that has data as `<name>.png` and `<name>.pdf`; return the names."""
+def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "") -> list[str]:
+    """Write every plot that has data as `<name><suffix>.png` and `.pdf`; return the file stems."""
     import io
 
     from harness.store import atomic_write
@@ -196,7 +202,7 @@ def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path) -> list[str]:
         for ext in ("png", "pdf"):
             buffer = io.BytesIO()
             fig.savefig(buffer, format=ext, dpi=130, bbox_inches="tight")  # legends beside the axes
-            atomic_write(Path(out_dir) / f"{name}.{ext}", buffer.getvalue())
+            atomic_write(Path(out_dir) / f"{name}{suffix}.{ext}", buffer.getvalue())
         plt.close(fig)
-        written.append(name)
+        written.append(f"{name}{suffix}")
     return written

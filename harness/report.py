@@ -32,10 +32,11 @@ from harness.analysis import (
     trained,
 )
 from harness.paper import paper_table
-from systems.reference import OFF_TRAINING
 from harness.store import atomic_write
+from harness.suites.accuracy import COI_DELTA
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
+from systems.reference import OFF_TRAINING
 
 __all__ = ["build_tables", "metadata", "write_report"]
 
@@ -113,7 +114,8 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
     rows = []
     for (case, name), g in df.groupby(["case", "label"], sort=False):
         row = {"case": case, "solver": name}
-        for quantity, against, title in (("delta", "reference", "delta"), ("omega", "reference", "omega"),
+        for quantity, against, title in (("delta", "reference", "delta"), (COI_DELTA, "reference", COI_DELTA),
+                                         ("omega", "reference", "omega"),
                                          ("delta", OFF_TRAINING, "delta off the training points"),
                                          ("delta", "paper ode45 data", "delta vs paper data")):
             sel = g[(g["quantity"] == quantity) & (g["against"] == against)]
@@ -162,13 +164,22 @@ def _identification_table(frames: dict) -> pd.DataFrame:
     df = df.assign(label=label(df), data=identification_data(df))
     rows = []
     for (name, data, noise), g in df.groupby(["label", "data", "noise"], sort=False):
+        machines = int(g["machines"].max()) if "machines" in g and g["machines"].notna().any() else 1
         rows.append({"solver": name, "data": data, "noise": f"{noise:.0%}", "pairs": g["pair"].nunique(),
-                     "m error mean (%)": fmt(100 * g["m_rel_error"].mean()),
+                     "machines": machines,
+                     "m error mean (%)": fmt(100 * _mean_error(g, "m")),
                      "m error worst (%)": fmt(100 * g["m_rel_error"].max()),
-                     "d error mean (%)": fmt(100 * g["d_rel_error"].mean()),
+                     "d error mean (%)": fmt(100 * _mean_error(g, "d")),
                      "d error worst (%)": fmt(100 * g["d_rel_error"].max()),
                      "time median (s)": fmt(g["identify_s"].median()), **_uncertainty_columns(g)})
     return pd.DataFrame(rows)
+
+
+def _mean_error(g: pd.DataFrame, name: str) -> float:
+    """The mean relative error of `name` over rows and machines (`{name}_rel_error` is a row's worst
+    machine; rows of runs before multi-machine cases have one machine and no mean column)."""
+    column = f"{name}_rel_error_mean"
+    return float((g[column].fillna(g[f"{name}_rel_error"]) if column in g else g[f"{name}_rel_error"]).mean())
 
 
 def _uncertainty_columns(g: pd.DataFrame) -> dict:
@@ -180,7 +191,8 @@ def _uncertainty_columns(g: pd.DataFrame) -> dict:
         if low not in g or high not in g:
             out[f"{name} 95% half-width median (%)"] = out[f"{name} truth in 95% CI"] = "n/a"
             continue
-        half = 100 * (g[high] - g[low]) / 2 / g[f"{name}_est"]
+        width = f"{name}_rel_half_width"  # worst machine; rows of runs before it: one machine's
+        half = 100 * (g[width] if width in g else (g[high] - g[low]) / 2 / g[f"{name}_est"])
         inside = g[f"{name}_in_ci95"].dropna().astype(bool)
         out[f"{name} 95% half-width median (%)"] = fmt(half.median())
         out[f"{name} truth in 95% CI"] = f"{int(inside.sum())}/{inside.size}" if inside.size else "n/a"
@@ -234,9 +246,15 @@ def _status_table(frames: dict) -> pd.DataFrame:
     return bad[["suite", "case", "solver", "status"]].drop_duplicates()
 
 
+def _smib_paper_table(frames: dict) -> pd.DataFrame | None:
+    """The paper's table, for a SMIB case only (the paper's figures are of the SMIB)."""
+    cases = {c for df in frames.values() if "case" in df for c in df["case"].dropna().unique()}
+    return paper_table(frames) if cases and cases <= set(SMIB_FORWARD) else None
+
+
 TABLES = {
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
-               "error, fit time and query time of one model)"), paper_table),
+               "error, fit time and query time of one model)"), _smib_paper_table),
     "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
                 "seed; `query=numba` is the compiled query path) against the fastest classical option at least "
                 "as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
@@ -247,12 +265,51 @@ TABLES = {
     "break_even": ("Cost of training: queries needed before a PINN pays off", _break_even_table),
     "latency": (("Warm query latency of delta and omega, ms: median of repeats ± half the interquartile "
                  "range (in % of the median)"), _latency_table),
-    "identification": (("Identification of m and d from N_u = 100 samples of delta: the tight reference "
-                        "(over the (m, d) pairs) or the paper's ode45 data (its own case)"),
+    "identification": (("Identification of every machine's m and d from N_u = 100 samples of all angles: the "
+                        "tight reference (SMIB: over the (m, d) pairs; multi-machine: the case's own values) or "
+                        "the paper's ode45 data (its own case); errors: mean and worst over pairs and machines"),
                        _identification_table),
     "fit": ("Preparation cost, apart from queries: build, JIT, training", _fit_table),
     "status": ("Skipped or failed", _status_table),
 }
+
+
+SMIB_FORWARD = ("smib-inference", "smib-identification")
+SMIB_IDENTIFICATION_CASE = "smib-identification"
+
+
+def _identification_case(name: str) -> str:
+    """The case identification measures for forward case `name` (`harness.suites.identification_case`,
+    by name: the report builds no case)."""
+    return SMIB_IDENTIFICATION_CASE if name in SMIB_FORWARD else name
+
+
+def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, pd.DataFrame]]]:
+    """The frames of each forward case, in run order: its rows of every suite, and the
+    identification rows of its identification case (the SMIB's own case for a SMIB). In a case
+    without an infinite bus (any work-precision row with `rel_l2_delta_coi`) the verdicts compare
+    at the accuracy of the angles relative to the centre of inertia: `rel_l2_delta` is replaced by
+    it there (absolute angles drift together; their error says little about the swings)."""
+    names: list[str] = []
+    for suite, df in frames.items():
+        if suite != "identification" and "case" in df:
+            names += [n for n in df["case"].dropna().unique() if n not in names]
+    ident = frames.get("identification")
+    if ident is not None and "case" in ident:
+        covered = {_identification_case(n) for n in names}
+        names += [n for n in ident["case"].dropna().unique() if n not in covered and n not in names]
+    sections = []
+    for name in names:
+        own = {}
+        for suite, df in frames.items():
+            case = _identification_case(name) if suite == "identification" else name
+            part = df[df["case"] == case].dropna(axis=1, how="all").reset_index(drop=True) if "case" in df else df
+            if suite == "work_precision" and "rel_l2_delta_coi" in part:
+                part = part.assign(rel_l2_delta=part["rel_l2_delta_coi"].fillna(part["rel_l2_delta"]))
+            if not part.empty:
+                own[suite] = part
+        sections.append((name, own))
+    return sections
 
 
 def suite_frames(rows: list[dict]) -> dict[str, pd.DataFrame]:
@@ -284,34 +341,42 @@ def _header(meta: dict) -> str:
 HEADLINE = ("paper", "ladder", "break_even", "accuracy", "identification")
 
 
-def _verdict(frames: dict) -> str:
+def _section_markdown(name: str, frames: dict, tables: dict, only: Sequence[str] | None = None,
+                      level: str = "###") -> str:
+    chosen = [(title, table) for key, (title, table) in tables.items() if only is None or key in only]
+    return (f"{level[:-1]} Case {name}\n\n" + _verdict(frames, level)
+            + "\n".join(f"{level} {title}\n\n{table.to_markdown(index=False)}\n" for title, table in chosen))
+
+
+def _verdict(frames: dict, level: str = "###") -> str:
     lines = verdict_lines(frames)
-    return "### Verdict of this run\n\n" + "".join(f"- {line}\n" for line in lines) + "\n" if lines else ""
+    return f"{level} Verdict of this case\n\n" + "".join(f"- {line}\n" for line in lines) + "\n" if lines else ""
 
 
 def headline_markdown(rows: list[dict], meta: dict) -> str:
-    """The headline tables of a run (for the project README), in Markdown."""
-    frames = suite_frames(rows)
-    tables = build_tables(frames)
-    return _header(meta) + _verdict(frames) + "\n".join(f"### {title}\n\n{table.to_markdown(index=False)}\n"
-                                      for name, (title, table) in tables.items() if name in HEADLINE)
+    """The headline tables of a run (for the project README), in Markdown, case by case."""
+    sections = case_sections(suite_frames(rows))
+    return _header(meta) + "\n".join(_section_markdown(name, frames, build_tables(frames), HEADLINE, "####")
+                                      for name, frames in sections)
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
-    """Write `<suite>.csv` (tidy, one row per measurement), `tables.md`, `tables.tex`, the plots,
-    `README.md` and `metadata.json` to `out_dir`, each atomically; return the Markdown."""
+    """Write `<suite>.csv` (tidy, one row per measurement, every case), `tables.md`, `tables.tex`,
+    the plots (of each case, `<plot>-<case>.png` when the run has several), `README.md` and
+    `metadata.json` to `out_dir`, each atomically; return the Markdown."""
     out_dir = Path(out_dir)
     frames = suite_frames(rows)
     for suite, df in frames.items():
         csv = df.drop(columns=[c for c in TRAJECTORY_COLUMNS if c in df])
         atomic_write(out_dir / f"{suite}.csv", csv.to_csv(index=False))
-    steps = ladder_rows(frames, fastest_per_config=False)
+    sections = [(name, own, build_tables(own)) for name, own in case_sections(frames)]
+    steps = pd.concat([ladder_rows(own, fastest_per_config=False).assign(case=name) for name, own, _ in sections]
+                      or [pd.DataFrame()], ignore_index=True)
     if not steps.empty:
         atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
-    tables = build_tables(frames)
-    markdown = _header(meta) + _verdict(frames) + "\n".join(
-        f"### {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables.values())
-    latex = "\n".join(f"% {title}\n{table.to_latex(index=False, escape=True)}" for title, table in tables.values())
+    markdown = _header(meta) + "\n".join(_section_markdown(name, own, tables) for name, own, tables in sections)
+    latex = "\n".join(f"% {name}: {title}\n{table.to_latex(index=False, escape=True)}"
+                      for name, _, tables in sections for title, table in tables.values())
     atomic_write(out_dir / "tables.md", markdown)
     atomic_write(out_dir / "tables.tex", latex)
     atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
@@ -319,12 +384,13 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     if plots:
         from harness.plots import make_plots
 
-        figures = make_plots(frames, out_dir)
-    atomic_write(out_dir / "README.md", _results_readme(meta, frames, tables, figures))
+        for name, own, _ in sections:
+            figures += make_plots(own, out_dir, suffix=f"-{name}" if len(sections) > 1 else "")
+    atomic_write(out_dir / "README.md", _results_readme(meta, frames, markdown, figures))
     return markdown
 
 
-def _results_readme(meta: dict, frames: dict, tables: dict, figures: list[str]) -> str:
+def _results_readme(meta: dict, frames: dict, markdown: str, figures: list[str]) -> str:
     lines = ["# swingbench results", "",
              "Generated by `swingbench run` (re-render with `swingbench report DIR`); do not edit by hand.",
              "", "## Run", ""]
@@ -333,9 +399,8 @@ def _results_readme(meta: dict, frames: dict, tables: dict, figures: list[str]) 
               "- `rows.jsonl`: every row as measured (the source of everything else)",
               *(f"- `{suite}.csv`: tidy rows of the {suite} suite" for suite in frames),
               "- `tables.md`, `tables.tex`: the tables below, Markdown and LaTeX",
-              "- `ladder.csv`: the verdict ladder of every PINN spec and query",
+              "- `ladder.csv`: the verdict ladder of every PINN spec, query and case",
               *(f"- `{name}.png`, `{name}.pdf`" for name in figures),
-              "", "## Tables", "", *(f"### {title}\n\n{table.to_markdown(index=False)}\n"
-                                      for title, table in tables.values())]
+              "", "## Tables", "", markdown.split("\n\n", 1)[1] if "\n\n" in markdown else markdown]
     lines += [f"![{name}]({name}.png)" for name in figures]
     return "\n".join(lines) + "\n"

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from systems.cases import Case
 from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key
@@ -30,6 +29,7 @@ from harness.suites import SUITES, Suite
 from harness.timing import blas_threads, pinned_threads
 from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
+from systems.cases import Case
 
 __all__ = ["FIT", "Unit", "execute", "fit_or_load", "interrupted_message", "open_results", "plan", "run_suites",
            "run_unit"]
@@ -85,18 +85,24 @@ def _query_variant(spec: SolverSpec) -> bool:
     return any(key in QUERY_ONLY_OPTIONS for key, _ in spec.options)
 
 
-def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite]) -> list[Unit]:
+def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settings: Settings | None = None,
+         ) -> list[Unit]:
     """The units of `swingbench run` in run order: the forward cases first, then suites with a case
-    of their own; suites that are not measured for every seed run on the first seed only."""
-    targets = [(case, [s for s in suites if s.case is None]) for case in cases]
-    own: dict[Case, list[Suite]] = {}
+    of their own (`Suite.own_case`, e.g. the SMIB's identification case), each case once; suites that
+    are not measured for every seed run on the first seed only; with `settings`, only the specs
+    it `measures` on each case."""
+    targets: dict[Case, list[Suite]] = {case: [s for s in suites if s.own_case is None] for case in cases}
     for suite in suites:
-        if suite.case is not None:
-            own.setdefault(suite.case, []).append(suite)
-    targets += list(own.items())
+        if suite.own_case is not None:
+            for case in cases:
+                group = targets.setdefault(suite.own_case(case), [])
+                if suite not in group:
+                    group.append(suite)
     units = []
-    for case, group in targets:
+    for case, group in targets.items():
         for spec in specs:
+            if settings is not None and not settings.measures(spec, case):
+                continue
             cls = solver_class(spec.solver)
             chosen = [s.name for s in group if (s.every_seed or _first_seed(spec, specs))
                       and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec))]
@@ -224,7 +230,7 @@ def run_suites(
     unknown = [s for s in names if s not in SUITES]
     if unknown:
         raise ValueError(f"unknown suite(s) {', '.join(unknown)}; known: {', '.join(SUITES)}")
-    units = plan(list(specs), list(cases), [SUITES[n] for n in names])
+    units = plan(list(specs), list(cases), [SUITES[n] for n in names], settings)
     done = store.prepare_resume().completed if resume else set()
     return execute(units, settings, store, progress=progress, done=done)
 

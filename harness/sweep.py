@@ -88,9 +88,9 @@ class SweepSpec:
 
     def units(self) -> list:
         """Every run as a `harness.runner.Unit`: for each case, grid point and seed, in that order."""
-        from systems.cases import CASES
         from harness.runner import Unit
         from harness.runs import SolverSpec
+        from systems.cases import CASES
 
         swept = [name for name, _ in self.grid]
         out = []
@@ -134,8 +134,8 @@ def _check_value(where: str, value: Any) -> Any:
 def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
     """Validate a spec (the parsed JSON) and return it; ValueError names the bad key. With `check`,
     each grid point's adapter is constructed once (not fitted) so bad option values fail here."""
-    from systems.cases import CASES
     from solvers import SOLVERS, UNAVAILABLE
+    from systems.cases import CASES
 
     if not isinstance(raw, Mapping):
         raise ValueError(f"a sweep spec must be a JSON object, got {type(raw).__name__}")  # noqa: TRY004
@@ -218,8 +218,8 @@ def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
 
 def _check_points(spec: SweepSpec) -> None:
     """Construct (not fit) the adapter once per grid point: it rejects bad option values."""
-    from systems.cases import CASES
     from solvers import make_solver
+    from systems.cases import CASES
 
     case = CASES[spec.cases[0]]
     for point in spec.points():

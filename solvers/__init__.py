@@ -12,8 +12,8 @@ import importlib.util
 from collections.abc import Iterator, MutableMapping
 from typing import Any
 
-from systems.cases import Case
 from solvers.base import AbstractSolver
+from systems.cases import Case
 
 __all__ = ["INTERFACE", "SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers", "make_solver",
            "solver_class"]

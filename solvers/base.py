@@ -9,9 +9,9 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from systems.cases import Case, Observations, check_array
 from solvers.identification import Estimate, assess, data_shortfall
 from solvers.options import OptionSchema, defaults, validate_options
+from systems.cases import Case, Observations, check_array
 
 __all__ = [
     "AbstractSolver",

@@ -9,10 +9,10 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 from scipy.optimize import least_squares
 
-from systems.cases import Case, Observations
 from solvers.base import SolveError
 from solvers.identification import Estimate, gauss_newton_covariance
 from solvers.options import Bounds, OptionSchema, PositiveFloat
+from systems.cases import Case, Observations
 
 T = TypeVar("T")
 

@@ -9,8 +9,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from systems.cases import Observations
 from solvers.base import AbstractSolver, Estimate
+from systems.cases import Observations
 
 __all__ = ["NullSolver"]
 
@@ -23,19 +23,20 @@ class NullSolver(AbstractSolver):
     does_work: ClassVar[bool] = False
 
     def _fit(self) -> None:
-        self._zeros: dict[tuple[int, int], np.ndarray] = {}
+        self._zeros: dict[tuple[int, ...], np.ndarray] = {}
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        shape = (P1.shape[0], t.shape[0])
+        shape = (P1.shape[0], t.shape[0], self.case.n)
         zeros = self._zeros.get(shape)
         if zeros is None:
             zeros = self._zeros[shape] = np.zeros(shape)
         return zeros, zeros
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        zeros = self._zeros.get((t.shape[0], 0))
+        shape = (t.shape[0], self.case.n)
+        zeros = self._zeros.get(shape)
         if zeros is None:
-            zeros = self._zeros[(t.shape[0], 0)] = np.zeros(t.shape[0])
+            zeros = self._zeros[shape] = np.zeros(shape)
         return zeros, zeros
 
     def _identify(self, obs: Observations) -> Estimate:

@@ -7,11 +7,10 @@ from typing import ClassVar
 import numpy as np
 from scipy.integrate import odeint
 
-from systems.cases import Observations
-from systems.cases import Case
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation, run_batch
 from solvers.scipy_rk45 import _rhs, stacked_states
+from systems.cases import Case, Observations
 
 
 class ScipyOdeint(AbstractSolver):

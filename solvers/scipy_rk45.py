@@ -7,11 +7,10 @@ from typing import ClassVar, Literal
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from systems.cases import Observations
-from systems.cases import Case
-from systems.model import Coupling, accelerations, coupling
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation
+from systems.cases import Case, Observations
+from systems.model import Coupling, accelerations, coupling
 
 
 def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: np.ndarray) -> np.ndarray:

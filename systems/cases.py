@@ -15,9 +15,9 @@ import numpy as np
 
 __all__ = [
     "CASES",
+    "IDENTIFICATION_PAIRS",
     "NETWORK_CASES",
     "SMIB_CASES",
-    "IDENTIFICATION_PAIRS",
     "SMIB_IDENTIFICATION",
     "SMIB_INFERENCE",
     "Case",

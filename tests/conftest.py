@@ -8,8 +8,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "2")
 
 import pytest
 
-from systems.cases import SMIB_INFERENCE
 from solvers import SOLVERS, UNAVAILABLE, make_solver
+from systems.cases import SMIB_INFERENCE
 
 ALL_SOLVERS = tuple(SOLVERS)
 

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from conftest import ALL_SOLVERS, fit_for_tests, require, small_options
 
-from systems.cases import SMIB_INFERENCE, Observations
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError, Trajectory
+from systems.cases import CASES, SMIB_INFERENCE, Observations
+from systems.reference import reference
 
 
 @pytest.mark.parametrize("name", ALL_SOLVERS)
@@ -21,10 +22,10 @@ def test_grid_shapes_and_dtypes(fitted_solvers, name):
     traj = solver.solve(t, P1)
     assert isinstance(traj, Trajectory)
     for arr in (traj.delta, traj.omega):
-        assert arr.shape == (3, 7)
+        assert arr.shape == (3, 7, 1)  # (n_P1, n_t, n machines): the one shape rule, N = 1 included
         assert arr.dtype == np.float64
         assert np.isfinite(arr).all()
-    np.testing.assert_allclose(traj.delta[:, 0], SMIB_INFERENCE.delta0, atol=0.05)
+    np.testing.assert_allclose(traj.delta[:, 0, 0], SMIB_INFERENCE.delta0[0], atol=0.05)
 
 
 @pytest.mark.parametrize("name", ALL_SOLVERS)
@@ -39,7 +40,7 @@ def test_order_repeats_and_single_point(fitted_solvers, name):
     np.testing.assert_allclose(shuffled.omega[:, order], ordered.omega, rtol=1e-9, atol=1e-12)
     assert shuffled.delta[0, 0] == shuffled.delta[0, 3]  # the repeated time
     single = solver.solve([7.25], [P1])
-    assert single.delta.shape == (1, 1)
+    assert single.delta.shape == (1, 1, 1)
     # another output grid may change an adaptive solver's steps: equal to within its tolerance
     np.testing.assert_allclose(single.delta[0, 0], ordered.delta[0, 2], rtol=1e-3, atol=1e-4)
 
@@ -92,8 +93,11 @@ def test_identify_rejects_bad_observations(name):
     solver = make_solver(name, SMIB_INFERENCE, **small_options(name))
     with pytest.raises(ValueError, match="Observations"):
         solver.identify("not observations")
-    too_few = solver.identify(Observations([1.0], [0.1], [0.2]))  # an outcome, not an error
+    too_few = solver.identify(Observations([1.0], [0.1], [[0.2]]))  # an outcome, not an error
     assert not too_few.success and "distinct samples" in too_few.message
+    assert too_few.m.shape == (1,) and too_few.m_ci95.shape == (1, 2)
+    with pytest.raises(ValueError, match="obs.delta has 2 machine column"):
+        solver.identify(Observations([1.0, 2.0], [0.1, 0.1], [[0.2, 0.1], [0.3, 0.1]]))
 
 
 def test_registry_is_one_dict_of_adapter_classes():
@@ -107,9 +111,10 @@ def test_registry_is_one_dict_of_adapter_classes():
 def _linear_closed_form(case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """delta, omega of m delta'' + d delta' = P1 (b = 0): with v = P1 / d and tau = m / d,
     delta = delta0 + v t + (omega0 - v) tau (1 - exp(-t / tau)), omega = v + (omega0 - v) exp(-t / tau)."""
-    v, tau = P1[:, None] / case.d, case.m / case.d
+    (m,), (d,), (delta0,), (omega0,) = case.m, case.d, case.delta0, case.omega0
+    v, tau = P1[:, None] / d, m / d
     decay = np.exp(-t[None, :] / tau)
-    return case.delta0 + v * t + (case.omega0 - v) * tau * (1 - decay), v + (case.omega0 - v) * decay
+    return delta0 + v * t + (omega0 - v) * tau * (1 - decay), v + (omega0 - v) * decay
 
 
 # A PINN trained briefly on the linear case: its error bound is loose, the check is that it learns
@@ -120,7 +125,7 @@ LINEAR_PINN = {"hidden_layers": 2, "width": 8, "n_f": 200, "max_iterations": 200
 @pytest.mark.parametrize("name", ALL_SOLVERS)
 def test_every_adapter_matches_the_closed_form_of_the_linear_case(name):
     require(name)
-    case = dataclasses.replace(SMIB_INFERENCE, b=0.0, name="smib-linear")
+    case = dataclasses.replace(SMIB_INFERENCE, b_inf=(0.0,), name="smib-linear")
     cls = SOLVERS[name]
     solver = make_solver(name, case, **LINEAR_PINN) if cls.trains else make_solver(name, case, "tight")
     fit_for_tests(solver)
@@ -128,5 +133,34 @@ def test_every_adapter_matches_the_closed_form_of_the_linear_case(name):
     traj = solver.solve(t, P1)
     delta, omega = _linear_closed_form(case, t, P1)
     tolerance = 1e-2 if cls.trains else 1e-8
-    assert np.linalg.norm(traj.delta - delta) / np.linalg.norm(delta) < tolerance
-    assert np.linalg.norm(traj.omega - omega) / np.linalg.norm(omega) < 10 * tolerance
+    assert np.linalg.norm(traj.delta[..., 0] - delta) / np.linalg.norm(delta) < tolerance
+    assert np.linalg.norm(traj.omega[..., 0] - omega) / np.linalg.norm(omega) < 10 * tolerance
+
+
+@pytest.fixture(scope="module")
+def wscc9():
+    pytest.importorskip("pandapower")
+    return CASES["wscc9"]
+
+
+@pytest.mark.parametrize("name", ALL_SOLVERS)
+def test_every_adapter_solves_a_multi_machine_case(wscc9, name):
+    """The WSCC 9-bus system (3 machines, lossy Kron-reduced network, no infinite bus): every adapter
+    answers with one angle and speed per machine; a classical one at its tight tolerances agrees
+    with the reference, a PINN on a tiny budget is finite and starts at the initial state."""
+    require(name)
+    cls = SOLVERS[name]
+    solver = make_solver(name, wscc9, **small_options(name)) if cls.trains else make_solver(name, wscc9, "tight")
+    fit_for_tests(solver)
+    t, P1 = np.array([0.0, 2.5, 1.0, 7.5]), np.array([wscc9.p1_min, wscc9.p1_max])
+    traj = solver.solve(t, P1)
+    points = solver.solve_points(t[:2], P1)
+    assert traj.delta.shape == traj.omega.shape == (2, 4, 3)
+    assert points.delta.shape == points.omega.shape == (2, 3)
+    assert np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
+    np.testing.assert_allclose(traj.delta[:, 0], np.tile(wscc9.delta0, (2, 1)), atol=1e-6)
+    if not cls.trains:
+        ref_delta, ref_omega = reference(wscc9, t, P1)
+        np.testing.assert_allclose(traj.delta, ref_delta, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(traj.omega, ref_omega, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(points.delta, [ref_delta[0, 0], ref_delta[1, 1]], rtol=1e-6, atol=1e-6)

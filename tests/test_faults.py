@@ -15,7 +15,7 @@ import pytest
 
 from harness.store import RowStore
 
-ARGV = ["run", "--quick", "--solver", "scipy-odeint", "--suite", "latency", "--threads", "1", "--progress", "off"]
+ARGV = ["run", "--quick", "--case", "smib-inference", "--solver", "scipy-odeint", "--suite", "latency", "--threads", "1", "--progress", "off"]
 # Columns whose values are measurements (times, repeat counts, where it ran), not what was measured.
 MEASURED = {"repeats", "worker", "point_repeats"}
 

@@ -10,7 +10,6 @@ import pandas as pd
 import pytest
 
 import solvers
-from systems.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.report import write_report
 from harness.runner import run_suites
@@ -18,6 +17,7 @@ from harness.runs import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_s
 from harness.store import RowStore, atomic_write
 from harness.timing import time_call
 from solvers.base import AbstractSolver, SolveError
+from systems.cases import SMIB_INFERENCE
 
 
 class Exploding(AbstractSolver):
@@ -108,7 +108,7 @@ def test_cli_run_and_report(tmp_path, capsys):
     out = tmp_path / "results"
     readme = tmp_path / "README.md"
     readme.write_text("intro\n<!-- swingbench:tables:start -->\nold\n<!-- swingbench:tables:end -->\nend\n")
-    assert main(["run", "--quick", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
+    assert main(["run", "--quick", "--case", "smib-inference", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
                  "--suite", "accuracy", "--out", str(out), "--update-readme", str(readme)]) == 0
     printed = capsys.readouterr().out
     assert "casadi-cvodes [default]" in printed
@@ -125,7 +125,7 @@ def test_cli_run_and_report(tmp_path, capsys):
 @pytest.mark.parametrize("argv,message", [
     (["run", "--solver", "rk4"], "unknown solver"),
     (["run", "--suite", "speed"], "unknown suite"),
-    (["run", "--case", "ieee39"], "unknown case"),
+    (["run", "--case", "ieee300"], "unknown case"),
 ])
 def test_cli_rejects_unknown_names(argv, message, tmp_path):
     with pytest.raises(SystemExit, match=message):
@@ -185,9 +185,9 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
 
 
 def test_identification_observations_from_the_reference_or_the_papers_data():
+    from harness.suites.identification import observations
     from systems.cases import SMIB_IDENTIFICATION
     from systems.reference import SEED_DIR, load_seed_reference, reference
-    from harness.suites.identification import observations
 
     tight = observations(SMIB_IDENTIFICATION, 50, seed=3)
     paper = observations(SMIB_IDENTIFICATION, 50, seed=3, data="paper ode45")
@@ -208,8 +208,8 @@ def test_identification_observations_from_the_reference_or_the_papers_data():
 @pytest.mark.parametrize("settings", [DEFAULT, FULL], ids=["default", "full"])
 def test_default_and_full_runs_identify_from_the_papers_data(settings):
     """--full is a superset of make bench: both identify the paper's own case, also from its data."""
-    from systems.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
     from harness.suites.identification import _runs
+    from systems.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
 
     assert settings.pairs[0] == PAPER_PAIR == (0.25, 0.15)
     assert (0, 0.0, "paper ode45") in _runs(SMIB_IDENTIFICATION, settings)
@@ -217,8 +217,8 @@ def test_default_and_full_runs_identify_from_the_papers_data(settings):
 
 
 def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
-    from systems.cases import SMIB_IDENTIFICATION
     from harness.suites.identification import identification
+    from systems.cases import SMIB_IDENTIFICATION
 
     settings = replace(QUICK, pairs=((0.25, 0.15), (0.1, 0.05)), noise_levels=(0.0, 0.01), n_u=60)
     fast = "numba-rk" if solvers.SOLVERS.get("numba-rk") is not None else "scipy-odeint"  # 0.07 s vs 0.5 s each
@@ -350,10 +350,10 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
-    from systems.cases import SMIB_INFERENCE as forward
     from harness.runner import plan
     from harness.runs import default_specs
     from harness.suites import SUITES
+    from systems.cases import SMIB_INFERENCE as forward
 
     specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
     units = {(unit.case.name, unit.spec.variant): list(unit.suites)

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from systems.cases import SMIB_IDENTIFICATION, Observations
 from harness.suites.identification import observations
 from solvers import make_solver
 from solvers.identification import MAX_CONDITION, Estimate, assess, gauss_newton_covariance
+from systems.cases import SMIB_IDENTIFICATION, Observations
 
 CASE = SMIB_IDENTIFICATION
 # casadi-cvodes at "tight" takes 15-30 s an identification of 100 samples on a busy 2-core machine:
@@ -34,11 +34,12 @@ def good():
 def _noisy(obs: Observations, noise: float, seed: int) -> Observations:
     """The same points, delta times (1 + noise N(0, 1)): the suite's relative noise."""
     rng = np.random.default_rng(seed)
-    return Observations(obs.t, obs.P1, obs.delta * (1.0 + noise * rng.standard_normal(len(obs))))
+    return Observations(obs.t, obs.P1, obs.delta * (1.0 + noise * rng.standard_normal(obs.delta.shape)))
 
 
-def _inside(ci: tuple[float, float], value: float) -> bool:
-    return ci[0] <= value <= ci[1]
+def _inside(ci: np.ndarray, value: tuple[float, ...]) -> bool:
+    """Whether every machine's value lies in its interval (rows (low, high))."""
+    return bool(np.all((ci[:, 0] <= value) & (value <= ci[:, 1])))
 
 
 # ---- data that cannot support an estimate --------------------------------------------------------
@@ -46,7 +47,7 @@ def _inside(ci: tuple[float, float], value: float) -> bool:
 
 @pytest.mark.parametrize("name", [*FAST, "casadi-cvodes"])
 def test_repeated_sample_fails(name, good):
-    obs = Observations(np.full(20, good.t[0]), np.full(20, good.P1[0]), np.full(20, good.delta[0]))
+    obs = Observations(np.full(20, good.t[0]), np.full(20, good.P1[0]), np.full((20, 1), good.delta[0, 0]))
     est = _solver(name).identify(obs)
     assert not est.success and "distinct samples" in est.message
 
@@ -59,14 +60,14 @@ def test_three_samples_fail(good):
 
 def test_pure_noise_fails(good):
     rng = np.random.default_rng(0)
-    est = _solver("numba-rk").identify(Observations(good.t, good.P1, rng.normal(0.7, 0.3, len(good))))
+    est = _solver("numba-rk").identify(Observations(good.t, good.P1, rng.normal(0.7, 0.3, (len(good), 1))))
     assert not est.success
     assert any(word in est.message for word in ("bound", "ill-conditioned", "wider than the estimate"))
 
 
 def test_data_from_outside_the_box_fails_on_its_bound():
     est = _solver("numba-rk").identify(observations(CASE.with_params(5.0, 0.15), 100))
-    assert not est.success and "upper bound" in est.message and est.m == pytest.approx(2.0)
+    assert not est.success and "upper bound" in est.message and est.m[0] == pytest.approx(2.0)
 
 
 # ---- data that can -----------------------------------------------------------------------------------
@@ -80,16 +81,16 @@ def test_good_data_interval_contains_the_truth_and_widens_with_noise(name, good)
     for est in (clean, noisy):
         assert est.success, est.message
         assert _inside(est.m_ci95, CASE.m) and _inside(est.d_ci95, CASE.d)
-        assert np.isfinite([est.m_se, est.d_se]).all() and est.m_se > 0 and est.d_se > 0
-    width = lambda ci: ci[1] - ci[0]
+        assert np.isfinite([est.m_se, est.d_se]).all() and (est.m_se > 0).all() and (est.d_se > 0).all()
+    width = lambda ci: ci[0, 1] - ci[0, 0]
     assert width(noisy.m_ci95) > width(clean.m_ci95) and width(noisy.d_ci95) > width(clean.d_ci95)
 
 
 def test_standard_errors_match_a_monte_carlo_spread(good):
     solver = _solver("numba-rk")
     runs = [solver.identify(_noisy(good, 0.01, seed)) for seed in range(8)]
-    spread = np.std([[r.m, r.d] for r in runs], axis=0, ddof=1)
-    se = np.mean([[r.m_se, r.d_se] for r in runs], axis=0)
+    spread = np.std([[r.m[0], r.d[0]] for r in runs], axis=0, ddof=1)
+    se = np.mean([[r.m_se[0], r.d_se[0]] for r in runs], axis=0)
     assert np.all(se / spread < 2.0) and np.all(spread / se < 2.0), (se, spread)
 
 
@@ -109,11 +110,11 @@ def test_gauss_newton_covariance_is_the_linear_regression_one():
 
 def test_assess_rules():
     cov = np.diag([1e-4, 1e-4])
-    fine = Estimate(0.25, 0.15, 5, True, "ok", cov, 98, 3.0, ((0.02, 2.0), (0.005, 1.0)))
+    fine = Estimate(0.25, 0.15, 5, True, "ok", cov, 98, 3.0, (((0.02, 2.0),), ((0.005, 1.0),)))
     verdict = assess(fine)
     assert verdict.success and verdict.message == "ok"
-    assert verdict.m_se == pytest.approx(0.25 * 1e-2)
-    low, high = verdict.m_ci95
+    assert verdict.m_se[0] == pytest.approx(0.25 * 1e-2)
+    low, high = verdict.m_ci95[0]
     assert low < 0.25 < high and np.log(high / 0.25) == pytest.approx(np.log(0.25 / low))  # log-symmetric
     assert not assess(fine._replace(m=2.0 * (1 - 1e-5))).success
     ill = assess(fine._replace(condition=10 * MAX_CONDITION))
@@ -126,6 +127,20 @@ def test_assess_rules():
     assert assess(Estimate(0.25, 0.15, 5, True, "no uncertainty")).success  # NaN fields, no rule applies
 
 
+def test_assess_judges_every_machine_and_names_the_one_that_fails():
+    """Two machines: cov over (log m_1, log m_2, log d_1, log d_2); machine 2's d on its bound."""
+    cov = np.diag([1e-4] * 4)
+    boxes = (((0.02, 2.0), (0.02, 2.0)), ((0.005, 1.0), (0.005, 1.0)))
+    two = Estimate(np.array([0.25, 0.5]), np.array([0.15, 0.3]), 5, True, "ok", cov, 98, 3.0, boxes)
+    verdict = assess(two)
+    assert verdict.success and verdict.m_ci95.shape == (2, 2) and verdict.d_se.shape == (2,)
+    assert verdict.d_se[1] == pytest.approx(0.3 * 1e-2)
+    on_bound = assess(two._replace(d=np.array([0.15, 1.0])))
+    assert not on_bound.success and "d_2=1 is on the upper bound" in on_bound.message
+    wide = assess(two._replace(cov_log=np.diag([1e-4, 1e-4, 1e-4, 1.0])))
+    assert not wide.success and "95 % interval of d_2" in wide.message
+
+
 # ---- PINNs -------------------------------------------------------------------------------------------------
 
 PINN_SMALL = {"threads": 1, "id_hidden_layers": 2, "id_width": 8, "id_n_f": 100, "id_max_iterations": 5}
@@ -135,7 +150,7 @@ def test_pinn_reports_finite_uncertainty_and_refuses_one_repeated_sample(good):
     pytest.importorskip("torch")
     solver = make_solver("torch-pinn", CASE, **PINN_SMALL)
     est = solver.identify(Observations(good.t[:30], good.P1[:30], good.delta[:30]))
-    assert np.isfinite([est.m, est.d, est.m_se, est.d_se, *est.m_ci95, *est.d_ci95]).all()
-    assert est.m_ci95[0] < est.m < est.m_ci95[1] and est.d_ci95[0] < est.d < est.d_ci95[1]
-    repeated = solver.identify(Observations(np.full(20, 3.0), np.full(20, 0.14), np.full(20, 0.8)))
+    assert np.isfinite([est.m, est.d, est.m_se, est.d_se]).all() and np.isfinite([est.m_ci95, est.d_ci95]).all()
+    assert _inside(est.m_ci95, est.m) and _inside(est.d_ci95, est.d)
+    repeated = solver.identify(Observations(np.full(20, 3.0), np.full(20, 0.14), np.full((20, 1), 0.8)))
     assert not repeated.success and "distinct samples" in repeated.message

@@ -9,10 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from systems.cases import SMIB_INFERENCE, check_array
 from solvers import INTERFACE, SOLVERS, make_solver, solver_class
 from solvers.base import Points, Trajectory
 from solvers.null import NullSolver
+from systems.cases import SMIB_INFERENCE, check_array
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def test_fast_path_accepts_and_rejects_exactly_what_check_array_does(null, t, p1
         traj = null.solve(t, p1)
         np.testing.assert_array_equal(traj.t, check_array("t_query", t, nonnegative=True))
         np.testing.assert_array_equal(traj.P1, check_array("P1", np.atleast_1d(p1)))
-        assert traj.delta.shape == (traj.P1.size, traj.t.size)
+        assert traj.delta.shape == (traj.P1.size, traj.t.size, 1)
     else:
         with pytest.raises(ValueError, match="t_query" if not t_ok else "P1"):
             null.solve(t, p1)
@@ -54,7 +54,7 @@ def test_fast_path_accepts_and_rejects_exactly_what_check_array_does(null, t, p1
 def test_fast_path_returns_a_trajectory_of_float64(null):
     traj = null.solve(np.array([10.0, 2.0]), 0.13)
     assert type(traj) is Trajectory
-    assert traj.delta.dtype == np.float64 and traj.delta.shape == (1, 2)
+    assert traj.delta.dtype == np.float64 and traj.delta.shape == (1, 2, 1)
     assert traj.P1.tolist() == [0.13]
 
 
@@ -63,11 +63,11 @@ def test_solve_points_pairs_times_with_p1():
     solver.fit()
     t, p1 = np.array([3.0, 10.0, 0.0]), np.array([0.1, 0.15, 0.12])
     points = solver.solve_points(t, p1)
-    assert type(points) is Points and points.delta.shape == (3,)
+    assert type(points) is Points and points.delta.shape == (3, 1)
     for i in range(3):
         single = solver.solve(t[i:i + 1], p1[i:i + 1])
-        assert points.delta[i] == pytest.approx(single.delta[0, 0], abs=1e-9)
-        assert points.omega[i] == pytest.approx(single.omega[0, 0], abs=1e-9)
+        assert points.delta[i, 0] == pytest.approx(single.delta[0, 0, 0], abs=1e-9)
+        assert points.omega[i, 0] == pytest.approx(single.omega[0, 0, 0], abs=1e-9)
     with pytest.raises(ValueError, match="pairs"):
         solver.solve_points([1.0, 2.0], [0.1])
     with pytest.raises(ValueError, match="P1"):
@@ -77,7 +77,7 @@ def test_solve_points_pairs_times_with_p1():
 def test_the_interface_adapter_is_not_a_registered_solver(null):
     assert INTERFACE not in SOLVERS and solver_class(INTERFACE) is NullSolver
     assert not NullSolver.does_work and all(cls.does_work for cls in SOLVERS.values() if cls is not None)
-    assert null.solve_points([1.0, 2.0], [0.1, 0.1]).delta.shape == (2,)
+    assert null.solve_points([1.0, 2.0], [0.1, 0.1]).delta.shape == (2, 1)
     with pytest.raises(NotImplementedError, match="interface only"):
         null._identify(None)
 

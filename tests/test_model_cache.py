@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from harness import model_cache
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from harness.model_cache import QUERY_ONLY_OPTIONS, cache_key, store_cached
 from harness.runner import fit_or_load
 from harness.runs import QUICK
 from solvers import make_solver
 from solvers.pinn import spec
 from solvers.pinn.spec import CorruptModelError
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 
 # torch.func's first jvp registers decompositions through torch.jit.script, deprecated in torch 2.13
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")

@@ -14,12 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from systems.cases import SMIB_INFERENCE, check_array
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 from solvers.classical import ToleranceOptions
 from solvers.options import OptionSchema, PositiveFloat, describe_option, validate_options
 from solvers.pinn.spec import PinnConfig
+from systems.cases import SMIB_INFERENCE, check_array
 
 CASE = SMIB_INFERENCE
 ADAPTERS = {name: cls for name, cls in SOLVERS.items() if cls is not None}

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 import solvers
-from systems.cases import SMIB_INFERENCE
 from harness.cli import main
 from harness.runner import run_suites
 from harness.runs import QUICK, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite
 from solvers.base import AbstractSolver
+from systems.cases import SMIB_INFERENCE
 
 SETTINGS = replace(QUICK, cache_dir=None)
 KEY = {"suite": "s", "case": "c", "solver": "x", "config": "default", "variant": "", "seed": -1}
@@ -151,7 +151,7 @@ def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
 
 def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
     SUITES["two"].run.interrupt = True
-    argv = ["run", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress", "off",
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress", "off",
             "--out", str(tmp_path)]
     assert main(argv) == 130
     err = capsys.readouterr().err.strip().splitlines()
@@ -169,7 +169,7 @@ def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
     (["--config", "default", "nope"], "unknown config(s) 'nope'"),
     (["--solver", "scipy-odeint", "nope"], "unknown solver(s) 'nope'"),
     (["--suite", "accuracy", "speed"], "unknown suite(s) 'speed'"),
-    (["--case", "smib-inference", "ieee39"], "unknown case(s) 'ieee39'"),
+    (["--case", "smib-inference", "ieee300"], "unknown case(s) 'ieee300'"),
 ])
 def test_an_unknown_name_anywhere_in_a_list_is_an_error(argv, message, tmp_path):
     with pytest.raises(SystemExit, match=message.replace("(", r"\(").replace(")", r"\)")):
@@ -180,7 +180,7 @@ def test_an_unknown_name_anywhere_in_a_list_is_an_error(argv, message, tmp_path)
 def test_an_unusable_out_is_one_line(tmp_path, counting):
     a_file = tmp_path / "file"
     a_file.write_text("x")
-    argv = ["run", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
     with pytest.raises(SystemExit, match="is a file, not a folder"):
         main([*argv, "--out", str(a_file)])
     if os.geteuid() != 0:  # root writes anywhere
@@ -210,7 +210,7 @@ def test_report_on_a_missing_folder_creates_nothing(tmp_path):
 
 
 def test_resume_refuses_a_run_made_with_other_settings(tmp_path, counting):
-    argv = ["run", "--solver", "counting", "--suite", "one", "--progress", "off", "--out", str(tmp_path)]
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--progress", "off", "--out", str(tmp_path)]
     assert main([*argv, "--quick"]) == 0
     with pytest.raises(SystemExit, match="made with settings 'quick', not 'default'"):
         main([*argv, "--resume"])

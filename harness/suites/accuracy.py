@@ -5,17 +5,24 @@ from __future__ import annotations
 import numpy as np
 
 from harness import metrics
-from systems.cases import Case, standard_grid
-from systems.reference import OFF_TRAINING, reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
+from systems.cases import Case, standard_grid
+from systems.model import relative_angles
+from systems.reference import OFF_TRAINING, reference, seed_reference
+
+# The quantity of the angles relative to the centre of inertia (systems without an infinite bus).
+COI_DELTA = "delta - delta_COI"
 
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
             P1: np.ndarray | None = None) -> dict:
-    """Errors of `pred` against `ref` (n_P1, n_t); with `P1`, also the best and worst trajectory
-    themselves (lists, for the paper's figure 3; the CSV leaves them out, rows.jsonl keeps them)."""
-    per_trajectory = metrics.rel_l2_per_row(pred, ref)
+    """Errors of `pred` against `ref` (n_P1, n_t, n): over every machine, time and P1; a
+    trajectory is one P1 (all its machines). With `P1`, also the best and worst trajectory
+    themselves ((n_t, n) nested lists, for the paper's figure 3; the CSV leaves them out, rows.jsonl
+    keeps them)."""
+    n_p = pred.shape[0]
+    per_trajectory = metrics.rel_l2_per_row(pred.reshape(n_p, -1), ref.reshape(n_p, -1))
     best, worst = int(per_trajectory.argmin()), int(per_trajectory.argmax())
     row = {
         "quantity": quantity, "against": against, "unit": unit,
@@ -39,10 +46,12 @@ def off_training_grid(case: Case) -> tuple[np.ndarray, np.ndarray]:
 
 
 def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
-    """Relative L2 (whole grid, the paper's measure), max abs error, best and worst trajectory of
-    delta (rad) and omega (rad/s) against DOP853 at 1e-12 on the standard grid (`against`
-    "reference"); the same on `off_training_grid` ("reference, off the training points"); delta
-    also against the paper's ode45 data when the case has them."""
+    """Relative L2 (whole grid and every machine, the paper's measure), max abs error, best and worst
+    trajectory of delta (rad) and omega (rad/s) against DOP853 at 1e-12 on the standard grid
+    (`against` "reference"); for a system without an infinite bus also of the angles relative to
+    the centre of inertia (quantity `COI_DELTA`: absolute angles drift together, and their error
+    hides or inflates the swings); the same on `off_training_grid` ("reference, off the training
+    points"); delta also against the paper's ode45 data when the case has them."""
     t, P1 = standard_grid(case)
     traj = solver.solve(t, P1)
     ref_delta, ref_omega = reference(case, t, P1)
@@ -55,6 +64,13 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
         _errors("delta", OFF_TRAINING, "rad", off.delta, off_delta),
         _errors("omega", OFF_TRAINING, "rad/s", off.omega, off_omega),
     ]
+    if not case.has_infinite_bus:
+        rows += [
+            _errors(COI_DELTA, "reference", "rad", relative_angles(case, traj.delta),
+                    relative_angles(case, ref_delta), P1),
+            _errors(COI_DELTA, OFF_TRAINING, "rad", relative_angles(case, off.delta),
+                    relative_angles(case, off_delta)),
+        ]
     seed = seed_reference(case)
     if seed is not None:
         t_seed, p1_seed, delta_seed = seed

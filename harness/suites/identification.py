@@ -1,20 +1,21 @@
-"""Identification of m and d from N_u scattered samples, over (m, d) pairs, noise levels and, for the
-paper's own case, the paper's MATLAB ode45 data."""
+"""Identification of every machine's m and d from N_u scattered samples of all angles: on the SMIB
+over the (m, d) pairs, the noise levels and, for the paper's own case, the paper's MATLAB ode45
+data; on a multi-machine case, its own parameters at each noise level."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from harness import metrics
-from systems.cases import Case, Observations, standard_grid
-from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
 from harness.runs import Settings
 from solvers.base import AbstractSolver
+from systems.cases import SMIB_CASES, Case, Observations, standard_grid
+from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
 
 
 def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0,
                  data: str = REFERENCE_DATA) -> Observations:
-    """`n_u` distinct points drawn at random from the paper's 100 x 201 grid of `case`, delta from
+    """`n_u` distinct (t, P1) points drawn at random from the paper's 100 x 201 grid of `case`, each
+    with the angles of every machine (delta (n_u, n)), from
     the tight reference (`data="reference"`) or from the paper's ode45 data of the case
     (`data="paper ode45"`, which the paper published for its two cases only), times
     (1 + noise * N(0, 1)) when `noise` > 0 (relative Gaussian, seeded). The same `seed` picks the
@@ -32,56 +33,86 @@ def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0,
     else:
         raise ValueError(f"data must be {REFERENCE_DATA!r} or {PAPER_DATA!r}, got {data!r}")
     rng = np.random.default_rng(seed)
-    flat = rng.choice(delta.size, size=n_u, replace=False)
-    i, j = np.unravel_index(flat, delta.shape)
-    values = delta[i, j] * (1.0 + noise * rng.standard_normal(n_u)) if noise > 0 else delta[i, j]
+    flat = rng.choice(delta.shape[0] * delta.shape[1], size=n_u, replace=False)
+    i, j = np.unravel_index(flat, delta.shape[:2])
+    values = delta[i, j]  # (n_u, n)
+    if noise > 0:  # one draw a sample for the SMIB, as before; one a machine and sample otherwise
+        values = values * (1.0 + noise * rng.standard_normal(values.shape[::-1]).T)
     return Observations(t[j], P1[i], values)
+
+
+def truths(case: Case, settings: Settings) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The (m (n,), d (n,)) p.u. to identify on `case`: the run's (m, d) pairs on a SMIB case (the
+    paper's setting), the case's own parameters on a multi-machine one."""
+    if case in SMIB_CASES:
+        return [(np.array([m]), np.array([d])) for m, d in settings.pairs]
+    return [(np.array(case.m), np.array(case.d))]
 
 
 def pair_observations(case: Case, settings: Settings, pair_index: int, noise: float,
                       data: str = REFERENCE_DATA) -> Observations:
-    """The observations of pair `pair_index` of `settings.pairs` (the rest of `case` fixed) at a
+    """The observations of truth `pair_index` of `truths` (the rest of `case` fixed) at a
     noise level: seed 1000 + pair index, so every adapter sees the same samples."""
-    m, d = settings.pairs[pair_index]
+    m, d = truths(case, settings)[pair_index]
     return observations(case.with_params(m, d), settings.n_u, noise, seed=1000 + pair_index, data=data)
 
 
 def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str]]:
-    """(pair index, noise, data) of every identification: each pair at each noise level on the
+    """(truth index, noise, data) of every identification: each truth at each noise level on the
     reference, and noise-free on the paper's ode45 data for a pair the paper published data of."""
     runs = []
-    for pair_index, (m, d) in enumerate(settings.pairs):
+    for pair_index, (m, d) in enumerate(truths(case, settings)):
         runs += [(pair_index, noise, REFERENCE_DATA) for noise in settings.noise_levels]
         if seed_reference(case.with_params(m, d)) is not None:
             runs.append((pair_index, 0.0, PAPER_DATA))
     return runs
 
 
-def _interval(name: str, ci95: tuple[float, float], truth: float) -> dict:
-    low, high = ci95
-    known = bool(np.isfinite([low, high]).all())
-    return {f"{name}_ci95_low": low, f"{name}_ci95_high": high,
-            f"{name}_in_ci95": bool(low <= truth <= high) if known else None}
+def _per_machine(values: np.ndarray) -> float | list[float]:
+    """A row's value of a per-machine quantity: a number for one machine, a list for several."""
+    values = np.asarray(values, np.float64)
+    return float(values[0]) if values.size == 1 else values.tolist()
+
+
+def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth: np.ndarray) -> dict:
+    """The row's columns of one parameter (m or d): estimates, per-machine relative errors, their
+    worst (`{name}_rel_error`) and mean, standard errors, intervals, whether every machine's truth
+    lies in its interval (None when some interval is unknown) and the worst relative half-width."""
+    errors = np.abs(est - truth) / np.abs(truth)
+    low, high = ci95[:, 0], ci95[:, 1]
+    known = bool(np.isfinite(ci95).all())
+    return {
+        f"{name}_true": _per_machine(truth), f"{name}_est": _per_machine(est),
+        f"{name}_rel_error": float(errors.max()), f"{name}_rel_error_mean": float(errors.mean()),
+        f"{name}_rel_errors": _per_machine(errors), f"{name}_se": _per_machine(se),
+        f"{name}_ci95_low": _per_machine(low), f"{name}_ci95_high": _per_machine(high),
+        f"{name}_in_ci95": bool(((low <= truth) & (truth <= high)).all()) if known else None,
+        f"{name}_rel_half_width": float(np.max((high - low) / 2 / est)) if known else float("nan"),
+    }
 
 
 def identification(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
-    """For each (m, d) pair of `settings.pairs` (the rest of `case` fixed), each noise level and
-    each data source (see `_runs`): estimate m and d from `settings.n_u` samples; relative errors,
-    wall time (s), standard errors (p.u.), 95 % intervals (p.u., NaN when the adapter has none) and
-    whether the true value lies in its interval (None when there is no interval)."""
+    """For each truth of `truths` (the SMIB's (m, d) pairs, or a multi-machine case's own
+    parameters), each noise level and each data source (see `_runs`): estimate every machine's m
+    and d from `settings.n_u` samples of all angles; relative errors (per machine, their worst and
+    mean), wall time (s), standard errors (p.u.), 95 % intervals (p.u., NaN when the adapter has
+    none) and whether the true values lie in them (None when there is no interval). Per-machine
+    columns hold a number for one machine and a list for several."""
     if solver.config in settings.skip_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
                            "(--full runs it)"}]
+    if case not in SMIB_CASES and solver.config not in settings.network_identify_configs:
+        return [{"status": f"skipped: config {solver.config} not identified on multi-machine cases (only "
+                           f"{', '.join(settings.network_identify_configs)})"}]
     rows = []
     for pair_index, noise, data in _runs(case, settings):
-        m, d = settings.pairs[pair_index]
+        m, d = truths(case, settings)[pair_index]
         obs = pair_observations(case, settings, pair_index, noise, data)
         est = solver.identify(obs)
         rows.append({
-            "pair": pair_index, "m_true": m, "d_true": d, "noise": noise, "data": data, "n_u": settings.n_u,
-            "m_est": est.m, "d_est": est.d, "m_rel_error": metrics.rel_error(est.m, m),
-            "d_rel_error": metrics.rel_error(est.d, d), "identify_s": est.seconds,
-            "iterations": est.iterations, "success": est.success, "message": est.message,
-            "m_se": est.m_se, "d_se": est.d_se, **_interval("m", est.m_ci95, m), **_interval("d", est.d_ci95, d),
+            "pair": pair_index, "noise": noise, "data": data, "n_u": settings.n_u, "machines": case.n,
+            **_columns("m", est.m, est.m_se, est.m_ci95, m), **_columns("d", est.d, est.d_se, est.d_ci95, d),
+            "identify_s": est.seconds, "iterations": est.iterations, "success": est.success,
+            "message": est.message,
         })
     return rows

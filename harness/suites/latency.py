@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from systems.cases import Case, standard_grid
 from harness.runs import Settings
 from harness.timing import time_call
 from solvers.base import AbstractSolver
+from systems.cases import Case, standard_grid
 
 T1_S = 10.0  # the paper's single-time-point query (its 87x claim)
 POINTS_SEED = 2024  # the scattered single points: the same for every adapter
@@ -23,7 +23,7 @@ def scattered_points(case: Case, n: int) -> tuple[np.ndarray, np.ndarray]:
 def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     """(kind, name, t_query, P1): the 100 x 201 grid; `throughput_sizes` trajectories of 201 times
     (P1 evenly spaced over the case's range; the size of the grid is the grid); delta and omega at
-    each t1 in `t1_values_s` for the middle P1; and `points_batch` scattered single points
+    each t1 in `t1_values_s` within the horizon for the middle P1; and `points_batch` scattered single points
     (`scattered_points`) answered by one `solve_points` call (kind "points batch")."""
     t, P1 = standard_grid(case)
     mid = P1[P1.size // 2: P1.size // 2 + 1]
@@ -33,7 +33,7 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
             continue
         p = mid if n == 1 else np.linspace(case.p1_min, case.p1_max, n)
         out.append(("throughput", f"{n} trajectories x {t.size} times", t, p))
-    for t1 in settings.t1_values_s:
+    for t1 in (t1 for t1 in settings.t1_values_s if t1 <= case.t_final):  # within the case's horizon
         out.append(("single point", f"single point t1={t1:g} s", np.array([t1]), mid))
     if settings.points_batch:
         t_points, p_points = scattered_points(case, settings.points_batch)

@@ -7,16 +7,18 @@ from dataclasses import replace
 
 from harness import metrics
 from harness.analysis import t1_column
-from systems.cases import Case, standard_grid
-from systems.reference import reference
 from harness.runs import Settings
 from harness.suites.latency import T1_S, queries
 from harness.timing import time_call
 from solvers.base import AbstractSolver
+from systems.cases import Case, standard_grid
+from systems.model import relative_angles
+from systems.reference import reference
 
 
 def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
-    """Errors on the grid; median, quartiles and repeats (s) of the grid query and, as `point_*`,
+    """Errors on the grid (for a system without an infinite bus also of the angles relative to the
+    centre of inertia, `rel_l2_delta_coi`); median, quartiles and repeats (s) of the grid query and, as `point_*`,
     of the single-time-point query at t1 = 10 s: the latency suite's own two queries. For a
     compiled adapter also the single point at every t1 of the run (`t1_column`, a fifth of the
     timing budget each), so that the crossover in t1 can take any point of its sweep."""
@@ -25,6 +27,8 @@ def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:
     traj = solver.solve(t, P1)
     row = {"rel_l2_delta": metrics.rel_l2(traj.delta, ref_delta),
            "rel_l2_omega": metrics.rel_l2(traj.omega, ref_omega)}
+    if not case.has_infinite_bus:  # the accuracy the verdicts of a multi-machine case compare at
+        row["rel_l2_delta_coi"] = metrics.rel_l2(relative_angles(case, traj.delta), relative_angles(case, ref_delta))
     t1_values = settings.t1_values_s if solver.compiled else (T1_S,)
     for kind, _, tq, pq in queries(case, replace(settings, throughput_sizes=(), t1_values_s=t1_values,
                                                  points_batch=0)):
