@@ -27,8 +27,9 @@ forkserver, which every benchmark process is forked from, so a network's power f
 import of pandapower) is paid once per run rather than once per benchmark.
 
 Quick mode: `SWINGBENCH_ASV_QUICK=1` (set by `make asv-quick`; asv itself does not tell a
-benchmark that it runs with --quick) selects the harness's QUICK settings (its cases, SMIB and
-wscc9) and small budgets, and identifies on the single-machine case only (see `IDENTIFICATION`).
+benchmark that it runs with --quick) selects the harness's QUICK settings with small budgets, on the
+SMIB only (`smib-inference`): it checks that every benchmark runs, and a multi-machine grid costs some
+adapters a minute a call. `make asv` measures every case.
 """
 
 from __future__ import annotations
@@ -92,6 +93,9 @@ SETTINGS: Settings = replace(
     noise_levels=QUICK.noise_levels,
     skip_identify_configs=(),
     cache_dir=_repo_root() / ".cache" / "models",
+    # `make asv-quick` (CI) checks that every benchmark runs, on the SMIB: a multi-machine grid takes
+    # scipy-rk45 [tight] ~60 s a call (the unit tests run every adapter on wscc9; `make asv`, every case)
+    **({"cases": ("smib-inference",)} if QUICK_MODE else {}),
 )
 # One `setup_cache` (every spec on every case: fits, accuracy, identifications) may take this long
 # (s): the budget of one case's preparation (900 s quick, 3600 s otherwise) per forward case.

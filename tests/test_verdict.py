@@ -93,7 +93,7 @@ def test_verdict_sentences_name_the_winner_of_each_query(tmp_path):
     assert "classical wins: numba-rk [tight] 0.02 ms" not in lines[1] and "the PINN wins, 2x faster" in lines[1]
     assert "cheaper below t1 = 5 s" in lines[2]
     markdown = write_report(_rows(), tmp_path, {"threads": 2}, plots=True)
-    assert "### Verdict of this run" in markdown and "Who wins each query" in markdown
+    assert "### Verdict of this case" in markdown and "Who wins each query" in markdown
     assert (tmp_path / "crossover.png").exists()
 
 
