@@ -1,24 +1,33 @@
 """Tests of the PINN adapters (torch-pinn, jax-pinn): physics, backend equivalence, persistence,
-training, identification and the solver contract. Small networks and budgets throughout."""
+training, identification, time-marching and the solver contract, on the SMIB and on a small
+two-machine system. Small networks and budgets throughout."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations
 from harness.metrics import rel_l2
-from systems.model import smib_system
-from systems.reference import reference
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network, spec
-from solvers.pinn.common import _progress_enabled
+from solvers.pinn.common import MarchingEvaluator, _progress_enabled
+from systems import model
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
+from systems.reference import reference
 
 # torch.func's first jvp registers decompositions through torch.jit.script, deprecated in torch 2.13
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
 
 CASE = SMIB_INFERENCE
+# Two machines, no infinite bus, lossy (G != 0), generator 1's P1 and the other's p_m unbalanced so
+# that the angles drift as well as swing (~0.75 Hz): every term of the N-machine model is exercised.
+TWO = Case(
+    name="two-machines", m=(0.1, 0.2), d=(0.05, 0.1), delta0=(0.1, -0.05), omega0=(0.05, -0.02),
+    p_m=(0.3, -0.25), E=(1.05, 1.0), G=((0.1, -0.05), (-0.05, 0.12)), B=((-3.0, 1.5), (1.5, -2.8)),
+    g_inf=(0.0, 0.0), b_inf=(0.0, 0.0), t_final=4.0, p1_min=0.25, p1_max=0.35,
+    m_box=((0.01, 1.0), (0.02, 2.0)), d_box=((0.005, 0.5), (0.01, 1.0)),
+)
 BACKENDS = {"torch-pinn": "torch", "jax-pinn": "jax"}
 # for tests whose JAX run is slow (JIT compilation, > 2 s) and whose torch run is not
 BACKENDS_SLOW_JAX = ["torch-pinn", pytest.param("jax-pinn", marks=pytest.mark.slow)]
@@ -73,45 +82,62 @@ def fitted(request):
 # ---- physics ------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("case", [CASE, TWO], ids=["smib", "two-machines"])
 @pytest.mark.parametrize("name", [*BACKENDS, "torch-autograd"])
-def test_swing_residual_of_a_known_function(name):
-    """The residual by nested forward-mode autodiff equals the analytic one for a known delta(t)."""
+def test_swing_residual_of_a_known_function(name, case):
+    """The residual of every machine by nested forward-mode autodiff equals the model's
+    (`systems.model.residual` in numpy, generator 1 at P1 and the others at p_m) for known
+    delta_k(t), omega_k(t)."""
     ops, array, to_np = _ops(name)
-    system = smib_system(CASE)
-    t_np = np.linspace(0.0, 20.0, 41)
-    p_np = np.linspace(0.08, 0.18, 41)
-    m, d, b = CASE.m, CASE.d, CASE.b
-    delta = 0.1 + 0.3 * np.sin(0.7 * t_np) + 0.01 * t_np ** 2
-    delta_t = 0.21 * np.cos(0.7 * t_np) + 0.02 * t_np
-    delta_tt = -0.147 * np.sin(0.7 * t_np) + 0.02
-    omega = 0.2 * np.cos(0.5 * t_np)
-    omega_t = -0.1 * np.sin(0.5 * t_np)
+    physics = network.Physics.of(case)
+    n = case.n
+    t_np = np.linspace(0.0, case.t_final, 41)
+    p_np = np.linspace(case.p1_min, case.p1_max, 41)
+    a, w = 0.3 + 0.1 * np.arange(n), 0.7 + 0.2 * np.arange(n)  # a different function per machine
+    ts = t_np[:, None]
+    delta = 0.1 + a * np.sin(w * ts) + 0.01 * ts ** 2
+    delta_t = a * w * np.cos(w * ts) + 0.02 * ts
+    delta_tt = -a * w * w * np.sin(w * ts) + 0.02
+    omega = 0.2 * np.cos(0.5 * w * ts)
+    omega_t = -0.1 * w * np.sin(0.5 * w * ts)
+    k, m, d = model.coupling(case), np.asarray(case.m), np.asarray(case.d)
+    P = case.powers(p_np)
     with _x64(name):
         t, p = array(t_np), array(p_np)
 
         def one(s):
-            return (0.1 + 0.3 * ops.sin(0.7 * s) + 0.01 * s * s,)
+            s = s[..., None]
+            return (0.1 + array(a) * ops.sin(array(w) * s) + 0.01 * s * s,)
 
         def two(s):
-            return one(s)[0], 0.2 * ops.sin(0.5 * s + np.pi / 2)
+            return one(s)[0], 0.2 * ops.sin(0.5 * array(w) * s[..., None] + np.pi / 2)
 
-        f1 = to_np(network.swing_residuals(one, 1, t, p, ops, system, m, d))
-        f2 = to_np(network.swing_residuals(two, 2, t, p, ops, system, m, d))
-    assert f1.shape == (41, 1) and f2.shape == (41, 2)
-    np.testing.assert_allclose(f1[:, 0], m * delta_tt + d * delta_t + b * np.sin(delta) - p_np, atol=1e-13)
-    np.testing.assert_allclose(f2[:, 0], delta_t - omega, atol=1e-13)
-    np.testing.assert_allclose(f2[:, 1], m * omega_t + d * omega + b * np.sin(delta) - p_np, atol=1e-13)
+        f1 = to_np(network.swing_residuals(one, 1, t, p, ops, physics, array(m), array(d)))
+        f2 = to_np(network.swing_residuals(two, 2, t, p, ops, physics, array(m), array(d)))
+    assert f1.shape == (41, n) and f2.shape == (41, 2 * n)
+    np.testing.assert_allclose(f1, model.residual(k, m, d, delta, delta_t, delta_tt, P), atol=1e-13)
+    np.testing.assert_allclose(f2[:, :n], delta_t - omega, atol=1e-13)
+    np.testing.assert_allclose(f2[:, n:], model.residual(k, m, d, delta, omega, omega_t, P), atol=1e-13)
+    if case is CASE:  # the paper's SMIB equation, written out
+        b = case.b_inf[0]
+        np.testing.assert_allclose(f1[:, 0], m * delta_tt[:, 0] + d * delta_t[:, 0] + b * np.sin(delta[:, 0]) - p_np,
+                                   atol=1e-13)
 
 
+@pytest.mark.parametrize("case", [CASE, TWO], ids=["smib", "two-machines"])
 @pytest.mark.parametrize("name", list(BACKENDS))
-def test_hard_initial_condition_holds_for_any_weights(name):
+def test_hard_initial_condition_holds_for_any_weights(name, case):
     ops, array, to_np = _ops(name)
-    arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=2, width=8), CASE)
-    theta = spec.init_theta(arch, seed=3)
-    with _x64(name):
-        delta, omega = network.delta_omega(arch, array(theta), array([[0.0]]), array([[0.08], [0.18]]), ops)
-    np.testing.assert_allclose(to_np(delta), CASE.delta0, atol=1e-15)
-    np.testing.assert_allclose(to_np(omega), CASE.omega0, atol=1e-15)
+    for outputs in (1, 2):
+        arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=2, width=8, outputs=outputs), case)
+        assert arch.sizes[-1] == outputs * case.n and arch.machines == case.n
+        theta = spec.init_theta(arch, seed=3)
+        with _x64(name):
+            delta, omega = network.delta_omega(arch, array(theta), array([[0.0]]),
+                                               array([[case.p1_min], [case.p1_max]]), ops)
+        assert to_np(delta).shape == (2, 1, case.n)
+        np.testing.assert_allclose(to_np(delta), np.broadcast_to(case.delta0, (2, 1, case.n)), atol=1e-15)
+        np.testing.assert_allclose(to_np(omega), np.broadcast_to(case.omega0, (2, 1, case.n)), atol=1e-15)
 
 
 def test_forward_problem_is_the_papers_data_and_seeded():
@@ -119,8 +145,9 @@ def test_forward_problem_is_the_papers_data_and_seeded():
     problem = spec.forward_problem(config, CASE)
     on_edge = (problem.t_u == 0) | np.isin(problem.p_u, [CASE.p1_min, CASE.p1_max])
     assert problem.t_u.size == 40 and on_edge.all()
-    for t, p, target in zip(problem.t_u[:5], problem.p_u[:5], problem.targets[:5, 0]):
-        assert target == pytest.approx(reference(CASE, [t], [p])[0][0, 0], abs=1e-12)
+    assert problem.targets.shape == (40, 1)
+    for t, p, target in zip(problem.t_u[:5], problem.p_u[:5], problem.targets[:5]):
+        np.testing.assert_allclose(target, reference(CASE, [t], [p])[0][0, 0], rtol=0, atol=1e-12)
     assert problem.t_f.size == 540  # LHS points plus the data points, as in the paper's code
     assert (problem.t_f >= 0).all() and (problem.t_f <= CASE.t_final).all()
     assert (problem.p_f >= CASE.p1_min).all() and (problem.p_f <= CASE.p1_max).all()
@@ -142,12 +169,16 @@ ARCH_VARIANTS = {
 
 
 # every architecture on the forward problem; the identification problem (m, d trained, omega data)
-# on the single- and two-output networks (its soft-IC terms are the forward problem's, checked there)
+# on the single- and two-output networks (its soft-IC terms are the forward problem's, checked there);
+# on two machines the forward problem of the hard-IC network and the identification of the
+# two-output one (every machine's residual, 2n trained log m, log d)
 @pytest.mark.slow
-@pytest.mark.parametrize("variant, identification", [
-    *((v, False) for v in ARCH_VARIANTS), ("hard-ic", True), ("two-outputs", True)],
-    ids=["fit-hard-ic", "fit-paper", "fit-two-outputs", "identify-hard-ic", "identify-two-outputs"])
-def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification):
+@pytest.mark.parametrize("variant, identification, case", [
+    *((v, False, CASE) for v in ARCH_VARIANTS), ("hard-ic", True, CASE), ("two-outputs", True, CASE),
+    ("hard-ic", False, TWO), ("two-outputs", True, TWO)],
+    ids=["fit-hard-ic", "fit-paper", "fit-two-outputs", "identify-hard-ic", "identify-two-outputs",
+         "two-machines-fit-hard-ic", "two-machines-identify-two-outputs"])
+def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification, case):
     """Same config and seed in float64: the same loss (1e-10 relative), gradient, Jacobian and
     network outputs in both backends, and torch's hand-rolled query path equals autodiff."""
     pytest.importorskip("torch")
@@ -155,24 +186,26 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification):
     from solvers.pinn.jax_pinn import JaxPinn
     from solvers.pinn.torch_pinn import TorchPinn
 
-    config = spec.PinnConfig(n_u=10, n_f=60, seed=1, **ARCH_VARIANTS[variant])
-    system = smib_system(CASE)
+    config = spec.PinnConfig(n_u=10, n_f=60, id_n_f=40, seed=1, **ARCH_VARIANTS[variant])
+    n = case.n
     if identification:
         rng = np.random.default_rng(0)
-        t, p = rng.uniform(0, 20, 30), rng.uniform(CASE.p1_min, CASE.p1_max, 30)
-        obs = Observations(t, p, np.sin(t) * p, np.cos(t))
-        arch = spec.Architecture.of(config, CASE, True, spec.identification_p_range(CASE, obs))
-        problem = spec.identification_problem(config, CASE, obs)
+        t, p = rng.uniform(0, case.t_final, 30), rng.uniform(case.p1_min, case.p1_max, 30)
+        phase = np.arange(n)
+        obs = Observations(t, p, np.sin(t[:, None] + phase) * p[:, None], np.cos(t[:, None] - phase))
+        arch = spec.Architecture.of(config, case, True, spec.identification_p_range(case, obs))
+        problem = spec.identification_problem(config, case, obs)
         theta = spec.init_theta(arch, config.seed, 0.3, 0.2)
+        assert arch.n_extra == 2 * n and problem.targets.shape == (30, 2 * n)
     else:
-        arch = spec.Architecture.of(config, CASE)
-        problem = spec.forward_problem(config, CASE)
+        arch = spec.Architecture.of(config, case)
+        problem = spec.forward_problem(config, case)
         theta = spec.init_theta(arch, config.seed)
-    solvers = [cls(CASE, threads=1, **ARCH_VARIANTS[variant]) for cls in (TorchPinn, JaxPinn)]
+    solvers = [cls(case, threads=1, **ARCH_VARIANTS[variant]) for cls in (TorchPinn, JaxPinn)]
     trainers = []
     for solver in solvers:
         solver._prepare_backend()
-        trainers.append(solver._compile(arch, problem, system, "float64"))
+        trainers.append(solver._compile(arch, problem, solver.physics, "float64"))
     (r_torch, r_jax) = (tr.residuals(theta) for tr in trainers)
     loss_torch, loss_jax = r_torch @ r_torch, r_jax @ r_jax
     assert loss_torch == pytest.approx(loss_jax, rel=1e-10)
@@ -184,8 +217,12 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification):
     np.testing.assert_allclose(j_torch, j_jax, rtol=1e-9, atol=1e-12 * np.abs(j_jax).max())
     np.testing.assert_allclose(2 * j_jax.T @ r_jax, g_jax, rtol=1e-8, atol=1e-12 * np.abs(g_jax).max())
 
+    physics_rows = problem.t_f.size * (n if arch.outputs == 1 else 2 * n)
+    assert r_torch.size == problem.targets.size + physics_rows
+
     # outputs: both query paths and autodiff of the shared network
-    t_q, p_q = np.array([0.0, 3.3, 20.0, 7.5, 3.3]), np.array([0.08, 0.131, 0.18])
+    t_q = np.array([0.0, 0.165, 1.0, 0.375, 0.165]) * case.t_final
+    p_q = case.p1_min + np.array([0.0, 0.51, 1.0]) * (case.p1_max - case.p1_min)
     outs = []
     for solver in solvers:
         evaluator = solver._make_evaluator(arch, "float64")
@@ -194,7 +231,7 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification):
     ops, array, to_np = _ops("torch-pinn")
     delta, omega = network.delta_omega(arch, array(theta), array(t_q)[None, :], array(p_q)[:, None], ops)
     for d_q, o_q in outs:
-        assert d_q.shape == o_q.shape == (3, 5)
+        assert d_q.shape == o_q.shape == (3, 5, n)
         np.testing.assert_allclose(d_q, to_np(delta), rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(o_q, to_np(omega), rtol=1e-11, atol=1e-13)
 
@@ -204,8 +241,8 @@ def test_torch_query_on_the_full_grid_matches_autodiff():
     _need("torch-pinn")
     import torch
 
-    from systems.cases import standard_grid
     from solvers.pinn.torch_pinn import _SIGMOID_TANH_MIN, _FastForward, _tanh_
+    from systems.cases import standard_grid
 
     z = torch.linspace(-40.0, 40.0, 2 * _SIGMOID_TANH_MIN + 1, dtype=torch.float64)
     np.testing.assert_allclose(_tanh_(z.clone()).numpy(), torch.tanh(z).numpy(), rtol=0, atol=5e-16)
@@ -241,7 +278,8 @@ def test_save_load_round_trip_across_backends(tmp_path, source, target):
     a, b = trained.solve(t, p), loaded.solve(t, p)
     np.testing.assert_allclose(b.delta, a.delta, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(b.omega, a.omega, rtol=1e-11, atol=1e-13)
-    assert loaded.identification["m"] == ident.m and loaded.identification["d"] == ident.d
+    np.testing.assert_array_equal(loaded.identification["m"], ident.m)
+    np.testing.assert_array_equal(loaded.identification["d"], ident.d)
     with pytest.raises(ValueError, match="case"):
         make_solver(target, SMIB_IDENTIFICATION, threads=1).load(tmp_path / "model")
 
@@ -250,11 +288,13 @@ def test_save_load_round_trip_across_backends(tmp_path, source, target):
 
 
 def _observations(case, n, seed=0, with_omega=False):
+    """n samples of every machine's delta (and omega) at random (t, P1), (n, case.n) each."""
     rng = np.random.default_rng(seed)
     t = np.round(rng.uniform(0.0, case.t_final, n), 1)
     p = rng.choice(np.linspace(case.p1_min, case.p1_max, 10), n)
-    delta = np.array([reference(case, [ti], [pi])[0][0, 0] for ti, pi in zip(t, p)])
-    omega = np.array([reference(case, [ti], [pi])[1][0, 0] for ti, pi in zip(t, p)]) if with_omega else None
+    rows = [reference(case, [ti], [pi]) for ti, pi in zip(t, p)]
+    delta = np.array([d[0, 0] for d, _ in rows])
+    omega = np.array([o[0, 0] for _, o in rows]) if with_omega else None
     return Observations(t, p, delta, omega)
 
 
@@ -280,8 +320,9 @@ def test_identification_recovers_m_and_d(name):
     solver = make_solver(name, case, **{**SMALL, "id_width": 10, "id_n_f": 300, "id_max_iterations": 60})
     result = solver.identify(_observations(case, 100))
     assert result.success and result.iterations > 0
-    assert result.m == pytest.approx(case.m, rel=0.05)
-    assert result.d == pytest.approx(case.d, rel=0.1)
+    assert result.m.shape == result.d.shape == (1,)
+    assert result.m[0] == pytest.approx(case.m[0], rel=0.05)
+    assert result.d[0] == pytest.approx(case.d[0], rel=0.1)
 
 
 def test_identification_uses_omega_observations():
@@ -291,14 +332,14 @@ def test_identification_uses_omega_observations():
     obs = _observations(CASE, 30, with_omega=True)
     solver = make_solver(name, CASE, **{**SMALL, "id_max_iterations": 10})  # at 3 no step is taken yet
     problem = spec.identification_problem(solver.pinn_config, CASE, obs)
-    np.testing.assert_array_equal(problem.targets, np.stack([obs.delta, obs.omega], axis=1))
+    np.testing.assert_array_equal(problem.targets, np.concatenate([obs.delta, obs.omega], axis=1))
     # the loss sees the omega values: the same run on shifted omega data ends elsewhere
     result = solver.identify(obs)
     theta = solver.identification["theta"]
     shifted = solver.identify(Observations(obs.t, obs.P1, obs.delta, obs.omega + 0.05))
-    assert np.isfinite([result.m, result.d]).all() and result.m > 0 and result.d > 0
+    assert np.isfinite([result.m, result.d]).all() and (result.m > 0).all() and (result.d > 0).all()
     assert not np.array_equal(solver.identification["theta"], theta)
-    assert (shifted.m, shifted.d) != (result.m, result.d)
+    assert not np.array_equal(np.concatenate([shifted.m, shifted.d]), np.concatenate([result.m, result.d]))
 
 
 def _available(name: str) -> bool:
@@ -333,11 +374,11 @@ def test_paper_configs_run_in_float32(name, config, monkeypatch):
     assert report.iterations <= 2 and np.isfinite(report.loss)
     assert float(np.float32(report.loss)) == report.loss  # (np.float32 == float compares in float32)
     traj = solver.solve(np.array([10.0, 0.0]), 0.13)
-    assert traj.delta.dtype == traj.omega.dtype == np.float64 and traj.delta.shape == (1, 2)
+    assert traj.delta.dtype == traj.omega.dtype == np.float64 and traj.delta.shape == (1, 2, 1)
     assert np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
     assert all(x.dtype == np.float32 for x in solver._evaluate(np.array([10.0, 0.0]), np.array([0.13])))
     ident = solver.identify(_observations(CASE, 20))
-    assert np.isfinite([ident.m, ident.d]).all() and ident.m > 0 and ident.d > 0
+    assert np.isfinite([ident.m, ident.d]).all() and ident.m[0] > 0 and ident.d[0] > 0
     assert len(compiled) >= 2 and {dtype for dtype, *_ in compiled} == {"float32"}  # fit, identify
     # what L-BFGS trained on (fit, identify) gives float32 numbers ...
     for (*_, trainer), theta in [(compiled[0], solver.theta), (compiled[-1], solver.identification["theta"])]:
@@ -386,20 +427,20 @@ def test_domain_errors_and_extrapolation(fitted):
     with pytest.raises(ValueError):
         fitted.solve([-1.0], 0.1)
     traj = fitted.solve([1.0, 25.0], [0.05, 0.2], extrapolate=True)
-    assert traj.delta.shape == (2, 2) and np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
+    assert traj.delta.shape == (2, 2, 1) and np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
 
 
 def test_solve_order_repeats_and_scalar_p1(fitted):
     t = np.array([5.0, 0.0, 12.5, 5.0, 20.0])
     traj = fitted.solve(t, 0.13)
-    assert traj.delta.shape == traj.omega.shape == (1, 5)
+    assert traj.delta.shape == traj.omega.shape == (1, 5, 1)
     assert traj.delta.dtype == np.float64 and traj.omega.dtype == np.float64
     order = np.argsort(t, kind="stable")
     sorted_traj = fitted.solve(t[order], [0.13])
     np.testing.assert_array_equal(sorted_traj.delta[0], traj.delta[0][order])
     np.testing.assert_array_equal(traj.delta[0, 0], traj.delta[0, 3])
     many = fitted.solve(t, np.array([0.09, 0.13, 0.17]))
-    assert many.delta.shape == (3, 5)
+    assert many.delta.shape == (3, 5, 1)
     np.testing.assert_allclose(many.delta[1], traj.delta[0], rtol=1e-14, atol=1e-15)
 
 
@@ -441,6 +482,7 @@ def test_training_runs_the_optimisers_blas_on_one_thread(monkeypatch):
 @pytest.mark.parametrize("bad", [
     {"outputs": 3}, {"threads": 0}, {"dtype": "float16"}, {"n_u": 0, "n_f": 0}, {"max_seconds": -1.0},
     {"optimizer": "sgd"}, {"hidden_layers": 0}, {"progress": "yes"}, {"no_such_option": 1},
+    {"window": 0.0}, {"window": 0.5, "hard_ic": False}, {"m_init": -0.1},
 ])
 def test_bad_options_raise(name, bad):
     _need(name)
@@ -451,3 +493,157 @@ def test_bad_options_raise(name, bad):
 def test_progress_is_quiet_under_pytest():
     assert _progress_enabled(None) is False
     assert _progress_enabled(True) is True
+
+
+# ---- N machines and time-marching ------------------------------------------------------------------
+
+TWO_SMALL = {"hidden_layers": 1, "width": 6, "n_u": 4, "n_f": 30, "max_iterations": 3, "threads": 1,
+             "progress": False, "id_hidden_layers": 1, "id_width": 6, "id_n_f": 30, "id_max_iterations": 5}
+MARCHING = {**TWO_SMALL, "window": 1.0}  # 4 windows on TWO's 4 s
+
+
+@pytest.fixture(scope="module", params=list(BACKENDS))
+def marched(request):
+    """A tiny time-marching model of TWO per backend (4 windows of 1 s, 3 LM iterations each) and
+    its FitReport."""
+    _need(request.param)
+    solver = make_solver(request.param, TWO, **MARCHING)
+    return solver, solver.fit()
+
+
+def test_two_machine_fit_and_identify_shapes():
+    """A single network on two machines: two angle outputs, (n_p, n_t, 2) trajectories, (n_s, 2)
+    points, and identification of both machines' m and d with a 4 x 4 covariance."""
+    _need("torch-pinn")
+    solver = make_solver("torch-pinn", TWO, **TWO_SMALL)
+    report = solver.fit()
+    assert solver.arch.sizes[-1] == 2 and solver.theta.shape == (solver.arch.n_params,) and solver.windows is None
+    assert report.iterations > 0 and np.isfinite(report.loss)
+    traj = solver.solve(np.linspace(0.0, 4.0, 7), np.array([0.25, 0.3, 0.35]))
+    assert traj.delta.shape == traj.omega.shape == (3, 7, 2)
+    np.testing.assert_allclose(traj.delta[:, 0], np.broadcast_to(TWO.delta0, (3, 2)), atol=1e-15)  # hard IC
+    points = solver.solve_points(np.array([0.5, 3.0]), np.array([0.26, 0.34]))
+    assert points.delta.shape == points.omega.shape == (2, 2)
+    ident = solver.identify(_observations(TWO, 25))
+    assert ident.m.shape == ident.d.shape == ident.m_se.shape == (2,) and ident.m_ci95.shape == (2, 2)
+    assert np.isfinite(np.concatenate([ident.m, ident.d])).all() and ident.iterations > 0
+    assert solver.identification["arch"].n_extra == 4 and solver.identification["m"].shape == (2,)
+
+
+def test_identification_starts_at_the_centre_of_each_box():
+    """m_init / d_init None: the geometric centre of each machine's box; a number: every machine."""
+    m, d = spec.start_guess(spec.PinnConfig(), TWO)
+    np.testing.assert_allclose(m, [0.1, 0.2], rtol=1e-15)
+    np.testing.assert_allclose(d, [0.05, 0.1], rtol=1e-15)
+    m, d = spec.start_guess(spec.PinnConfig(m_init=0.3), TWO)
+    np.testing.assert_array_equal(m, [0.3, 0.3])
+    arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=1, width=3), TWO, identification=True)
+    np.testing.assert_allclose(np.exp(spec.init_theta(arch, 0, m, d)[-4:]), [0.3, 0.3, 0.05, 0.1], rtol=1e-15)
+    # the SMIB boxes (0.02, 2) and (0.005, 1): m starts where the old default m_init did
+    assert spec.start_guess(spec.PinnConfig(), CASE)[0][0] == pytest.approx(0.2, rel=1e-15)
+
+
+def test_window_edges_and_training_points():
+    np.testing.assert_array_equal(spec.window_edges(4.2, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0, 4.2])
+    np.testing.assert_array_equal(spec.window_edges(4.0 + 1e-12, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0 + 1e-12])
+    assert spec.window_edges(10.0, 0.5).size == 21 and spec.window_edges(1.0, 5.0).tolist() == [0.0, 1.0]
+    config = spec.PinnConfig(n_u=6, n_f=50, window=1.0)
+    edges = spec.window_edges(TWO.t_final, 1.0)
+    problem = spec.window_problem(config, TWO, edges, 2)
+    assert problem.t_f.size == 56 and problem.targets.shape == (6, 2)
+    assert (problem.t_f >= 0).all() and (problem.t_f <= 1.0).all()  # times since the window's start
+    assert (problem.p_f >= TWO.p1_min).all() and (problem.p_f <= TWO.p1_max).all()
+    assert set(problem.p_u) == {TWO.p1_min, TWO.p1_max}
+    ref, _ = reference(TWO, 2.0 + problem.t_u, [TWO.p1_min, TWO.p1_max])
+    np.testing.assert_allclose(problem.targets, np.where((problem.p_u == TWO.p1_max)[:, None], ref[1], ref[0]),
+                               rtol=0, atol=1e-12)
+    other = spec.window_problem(config, TWO, edges, 3)
+    assert not np.array_equal(other.t_f, problem.t_f)
+    np.testing.assert_array_equal(spec.window_problem(config, TWO, edges, 2).t_f, problem.t_f)
+
+
+def test_marching_model_shapes(marched):
+    solver, report = marched
+    np.testing.assert_array_equal(solver.windows, [0.0, 1.0, 2.0, 3.0, 4.0])
+    assert solver.theta.shape == (4, solver.arch.n_params) and solver.arch.t_hi == 1.0
+    assert 4 <= report.iterations <= 12 and np.isfinite(report.loss) and "4 windows" in report.message
+    assert not np.array_equal(solver.theta[0], solver.theta[1])
+    traj = solver.solve(np.linspace(0.0, 4.0, 7), np.array([0.25, 0.3, 0.35]))
+    assert traj.delta.shape == traj.omega.shape == (3, 7, 2)
+    assert np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
+    np.testing.assert_allclose(traj.delta[:, 0], np.broadcast_to(TWO.delta0, (3, 2)), atol=1e-15)
+    points = solver.solve_points(np.array([0.5, 3.0, 1.0]), np.array([0.26, 0.34, 0.3]))
+    assert points.delta.shape == points.omega.shape == (3, 2)
+
+
+def test_marching_is_continuous_at_the_window_boundaries(marched):
+    """delta and omega just before a window's start (the previous window at its end) equal the
+    window's own start state to 1e-12: each window's hard initial condition is the state the
+    previous one reaches, for that P1."""
+    solver, _ = marched
+    P1 = np.array([0.25, 0.31, 0.35])
+    inner = solver.windows[1:-1]
+    left = solver.solve(np.nextafter(inner, 0.0), P1)  # the largest times of windows 0..2
+    right = solver.solve(inner, P1)  # the starts of windows 1..3
+    np.testing.assert_allclose(left.delta, right.delta, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(left.omega, right.omega, rtol=0, atol=1e-12)
+    # and the states do change across the windows (the check above is not of a constant)
+    assert np.abs(np.diff(right.delta, axis=1)).min() > 1e-6
+
+
+def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatch):
+    """A repeated single-point query looks the window starts up instead of walking the windows, and
+    gives what a grid query gives; the cache holds at most `cache_size` P1 values."""
+    from solvers.pinn import common
+
+    solver, _ = marched
+    evaluator = solver._evaluate
+    assert isinstance(evaluator, MarchingEvaluator)
+    t, P1 = np.array([0.0, 0.7, 1.0, 2.5, 3.99, 4.0]), np.array([0.27, 0.33])
+    grid = solver.solve(t, P1)
+    walks = []
+    real = common.walk
+    monkeypatch.setattr(common, "walk", lambda *args: walks.append(args[3].size) or real(*args))
+    for i in range(P1.size):
+        for j in range(t.size):
+            one = solver.solve(t[j:j + 1], P1[i:i + 1])
+            np.testing.assert_allclose(one.delta[0, 0], grid.delta[i, j], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(one.omega[0, 0], grid.omega[i, j], rtol=0, atol=1e-12)
+    assert walks == []  # the grid query cached both P1 values
+    solver.solve(np.array([2.2]), 0.2987)
+    solver.solve(np.array([3.2]), 0.2987)
+    assert walks == [1]  # a new P1: one walk, then the cache
+    points = solver.solve_points(np.repeat(t, 2), np.tile(P1, t.size))
+    np.testing.assert_allclose(points.delta, grid.delta.transpose(1, 0, 2).reshape(-1, 2), rtol=0, atol=1e-12)
+    evaluator.cache_size = 2
+    solver.solve(t, np.array([0.28, 0.29, 0.3]))
+    assert len(evaluator._cache) == 2
+
+
+@pytest.mark.parametrize("target", list(BACKENDS))
+def test_marching_save_load_round_trip(marched, target, tmp_path):
+    """All windows in one model file (format version 3, the window edges in the .json): loaded by
+    either backend they answer the same; the sha256 covers every window."""
+    import json
+
+    from solvers.pinn.spec import CorruptModelError
+
+    _need(target)
+    solver, _ = marched
+    npz, meta = solver.save(tmp_path / "model")
+    info = json.loads(meta.read_text())
+    assert info["version"] == 3 and info["windows"] == [0.0, 1.0, 2.0, 3.0, 4.0]
+    loaded = make_solver(target, TWO, threads=1).load(tmp_path / "model")
+    assert loaded.pinn_config.window == 1.0 and loaded.theta.shape == solver.theta.shape
+    np.testing.assert_array_equal(loaded.windows, solver.windows)
+    t, P1 = np.linspace(0.0, 4.0, 9), np.array([0.25, 0.3])
+    a, b = solver.solve(t, P1), loaded.solve(t, P1)
+    np.testing.assert_allclose(b.delta, a.delta, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.omega, a.omega, rtol=0, atol=1e-12)
+    with np.load(npz) as data:
+        theta = data["theta"].copy()
+    theta[3, 0] += 1e-9  # the last window only
+    with open(npz, "wb") as fh:
+        np.savez(fh, theta=theta)
+    with pytest.raises(CorruptModelError, match="sha256"):
+        spec.load_model(tmp_path / "model")

@@ -1,14 +1,16 @@
 """Tests of the compiled (numba) PINN query: equal to the JAX and torch evaluators in float64, on
-saved models and through the adapter's `query` option. Random weights, no long training."""
+saved models and through the adapter's `query` option, for one machine, two machines and
+time-marching models. Random weights, no long training."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from systems.cases import SMIB_INFERENCE
 from solvers import make_solver
 from solvers.pinn import spec
+from solvers.pinn.common import MarchingEvaluator
+from systems.cases import SMIB_INFERENCE, Case
 
 pytest.importorskip("numba")
 from solvers.pinn.compiled import NumbaEvaluator, compiled_model
@@ -17,6 +19,13 @@ from solvers.pinn.compiled import NumbaEvaluator, compiled_model
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
 
 CASE = SMIB_INFERENCE
+# two machines, lossy, no infinite bus (as tests/test_pinn.py's TWO)
+TWO = Case(
+    name="two-machines", m=(0.1, 0.2), d=(0.05, 0.1), delta0=(0.1, -0.05), omega0=(0.05, -0.02),
+    p_m=(0.3, -0.25), E=(1.05, 1.0), G=((0.1, -0.05), (-0.05, 0.12)), B=((-3.0, 1.5), (1.5, -2.8)),
+    g_inf=(0.0, 0.0), b_inf=(0.0, 0.0), t_final=4.0, p1_min=0.25, p1_max=0.35,
+    m_box=((0.01, 1.0), (0.02, 2.0)), d_box=((0.005, 0.5), (0.01, 1.0)),
+)
 T_GRID = np.linspace(0.0, CASE.t_final, 201)
 P_GRID = np.linspace(CASE.p1_min, CASE.p1_max, 100)
 POINTS = [(np.array([10.0]), np.array([0.13])), (np.array([0.0]), np.array([CASE.p1_min])),
@@ -65,7 +74,7 @@ def test_numba_equals_the_frameworks(numba_evaluators, backend, variant):
     for t, p in [(T_GRID, P_GRID), *POINTS]:
         delta, omega = ours(t, p)
         ref_delta, ref_omega = reference(t, p)
-        assert delta.shape == omega.shape == (p.size, t.size)
+        assert delta.shape == omega.shape == (p.size, t.size, 1)
         assert delta.dtype == omega.dtype == np.float64
         _close(delta, ref_delta)
         _close(omega, ref_omega)
@@ -78,7 +87,8 @@ def test_a_point_gives_the_same_bits_in_any_query(numba_evaluators):
     delta, omega = ours(T_GRID, P_GRID)
     for i, j in [(0, 0), (37, 101), (99, 200)]:
         d1, o1 = ours(T_GRID[j:j + 1], P_GRID[i:i + 1])
-        assert (d1[0, 0], o1[0, 0]) == (delta[i, j], omega[i, j])
+        np.testing.assert_array_equal(d1[0, 0], delta[i, j])
+        np.testing.assert_array_equal(o1[0, 0], omega[i, j])
 
 
 def test_threads_give_the_same_bits():
@@ -168,3 +178,63 @@ def test_solve_points_equals_one_point_queries(name, query):
         one = solver.solve(t[i:i + 1], p1[i:i + 1])
         np.testing.assert_allclose(points.delta[i], one.delta[0, 0], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(points.omega[i], one.omega[0, 0], rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("outputs, hard_ic", [(1, True), (2, True), (1, False), (2, False)])
+def test_two_machines_and_start_states_equal_the_framework(outputs, hard_ic):
+    """Two machines (n or 2n outputs): the grid, the points, and the time-marching calls with each
+    P1's or point's own start state equal torch's float64 evaluator to 1e-12."""
+    pytest.importorskip("torch")
+    config = spec.PinnConfig(hidden_layers=2, width=7, outputs=outputs, hard_ic=hard_ic)
+    arch = spec.Architecture.of(config, TWO)
+    theta = spec.init_theta(arch, 4) + 0.2 * np.random.default_rng(4).normal(size=arch.n_params)
+    ours = NumbaEvaluator(arch)
+    ours.load(theta)
+    reference = make_solver("torch-pinn", TWO, threads=1)._make_evaluator(arch, "float64")
+    reference.load(theta)
+    t, p = np.linspace(0.0, 4.0, 37), np.linspace(0.25, 0.35, 5)
+    for a, b in zip(ours(t, p), reference(t, p)):
+        assert a.shape == (5, 37, 2)
+        _close(a, b)
+    rng = np.random.default_rng(0)
+    t_s, p_s = rng.uniform(0, 4, 20), rng.uniform(0.25, 0.35, 20)
+    for a, b in zip(ours.points(t_s, p_s), reference.points(t_s, p_s)):
+        assert a.shape == (20, 2)
+        _close(a, b)
+    start_grid, start_points = rng.normal(size=(5, 2, 2)), rng.normal(size=(20, 2, 2))
+    mine, theirs = ours.prepare(theta), reference.prepare(theta)
+    for a, b in zip(ours.grid(mine, t, p, start_grid), reference.grid(theirs, t, p, start_grid)):
+        _close(a, b)
+    for a, b in zip(ours.pairs(mine, t_s, p_s, start_points), reference.pairs(theirs, t_s, p_s, start_points)):
+        _close(a, b)
+    if hard_ic:  # the start state is the state at the window's start
+        delta, omega = ours.grid(mine, np.zeros(1), p, start_grid)
+        np.testing.assert_array_equal(delta[:, 0], start_grid[:, 0])
+        np.testing.assert_array_equal(omega[:, 0], start_grid[:, 1])
+
+
+def test_a_marching_model_through_the_adapter_and_from_its_file(tmp_path):
+    """query="numba" on a time-marching model: the windows of the same training, evaluated by numba,
+    answer as the framework does (grid, single points, scattered points), after fit and from the
+    saved file (`compiled_model`)."""
+    pytest.importorskip("torch")
+    options = {**SMALL, "hidden_layers": 1, "width": 6, "n_u": 2, "n_f": 30, "window": 1.5}
+    framework = make_solver("torch-pinn", TWO, query="framework", **options)
+    compiled = make_solver("torch-pinn", TWO, query="numba", **options)
+    framework.fit()
+    compiled.fit()
+    np.testing.assert_array_equal(compiled.theta, framework.theta)  # training ignores the option
+    assert compiled.theta.shape[0] == 3 and isinstance(compiled._evaluate, MarchingEvaluator)
+    assert isinstance(compiled._evaluate.inner, NumbaEvaluator)
+    framework.save(tmp_path / "model")
+    from_file = compiled_model(tmp_path / "model")
+    assert isinstance(from_file, MarchingEvaluator)
+    t, p = np.linspace(0.0, 4.0, 41), np.array([0.25, 0.3, 0.35])
+    a = framework.solve(t, p)
+    for delta, omega in [tuple(compiled.solve(t, p)[2:]), from_file(t, p)]:
+        _close(delta, a.delta)
+        _close(omega, a.omega)
+    one = compiled.solve(np.array([2.9]), 0.3)
+    _close(one.delta[0, 0], framework.solve(np.array([2.9]), 0.3).delta[0, 0])
+    points = compiled.solve_points(np.array([0.1, 1.5, 3.7]), np.array([0.26, 0.3, 0.34]))
+    _close(points.delta, framework.solve_points(np.array([0.1, 1.5, 3.7]), np.array([0.26, 0.3, 0.34])).delta)

@@ -1,39 +1,45 @@
 """The adapter base class both PINN backends share: options, fit, identify, solve, save/load.
 
-A backend subclass provides four hooks: `_prepare_backend` (threads, precision),
-`_compile` (the training functions of one problem as numpy-in, numpy-out callables),
-`_make_evaluator` (the fast, warm query function of one trained network) and `_ops` (its
-`network.Ops`, for tests and tools). Everything else is here, once.
+A backend subclass provides three hooks: `_prepare_backend` (threads, precision),
+`_compile` (the training functions of one problem as numpy-in, numpy-out callables) and
+`_make_evaluator` (the fast, warm query function of one network architecture). Everything else is
+here, once: time-marching (`PinnConfig.window`) trains and queries its windows through the same
+hooks (`MarchingEvaluator`).
 """
 
 from __future__ import annotations
 
 import abc
+import dataclasses
 import os
 import sys
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from systems.cases import Observations
-from systems.model import SwingSystem, smib_system
 from solvers.base import AbstractSolver, FitReport, NotFittedError
 from solvers.identification import Estimate, gauss_newton_covariance
 from solvers.options import PositiveInt, StrictBool
 from solvers.pinn import spec
+from solvers.pinn.network import Physics
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
 from solvers.pinn.spec import Architecture, PinnConfig, PinnConfigSchema, Problem
+from systems.cases import Observations
 
-__all__ = ["Evaluator", "PinnSolver", "Trainer"]
-
+__all__ = ["Evaluator", "MarchingEvaluator", "PinnSolver", "Trainer"]
 
 
 class Evaluator(abc.ABC):
     """The warm query function of one network architecture: compiled (and warmed up) when made,
-    so that `load(theta)` after training costs no compilation."""
+    so that `load(theta)` after training costs no compilation.
+
+    `load` / `__call__` / `points` serve one network (the fast path of a query); `prepare` / `grid`
+    / `pairs` evaluate any prepared parameters with each P1's or point's own start state (the
+    windows of a time-marching model, see `MarchingEvaluator`)."""
 
     @abc.abstractmethod
     def load(self, theta: np.ndarray) -> None:
@@ -41,13 +47,133 @@ class Evaluator(abc.ABC):
 
     @abc.abstractmethod
     def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """delta (rad) and omega (rad/s), each (len(P1), len(t)), for t (s) and P1 (p.u.), 1-D
+        """delta (rad) and omega (rad/s), each (len(P1), len(t), n), for t (s) and P1 (p.u.), 1-D
         float64 numpy; float64 or float32 numpy out (the network's dtype)."""
 
     @abc.abstractmethod
     def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """delta (rad) and omega (rad/s) at the pairs (t[i] s, P1[i] p.u.), each (n,), one
+        """delta (rad) and omega (rad/s) at the pairs (t[i] s, P1[i] p.u.), each (n_s, n), one
         vectorised evaluation; dtypes as `__call__`."""
+
+    @abc.abstractmethod
+    def prepare(self, theta: np.ndarray) -> Any:
+        """The flat float64 parameters `theta` in the form `grid` and `pairs` take."""
+
+    @abc.abstractmethod
+    def grid(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """As `__call__` for the `prepare`d `params`, with P1[i]'s start state start[i] (len(P1),
+        2, n) float64 (rows delta rad, omega rad/s) in place of the architecture's initial
+        condition."""
+
+    @abc.abstractmethod
+    def pairs(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """As `points` for the `prepare`d `params`, with point i's start state start[i] (n_s, 2, n)."""
+
+
+class MarchingEvaluator(Evaluator):
+    """delta (rad) and omega (rad/s) of a time-marching model: one network per window
+    [edges[w], edges[w + 1]] s, each evaluated by `inner` (an `Evaluator` of the window
+    architecture, any backend or the compiled one) at the time since its window's start.
+
+    Window w's initial condition at P1 is the state window w - 1 reaches at t_w for that P1, so a
+    point needs every earlier window at its P1. Those start states are kept per P1 value in an LRU
+    cache (`cache_size` P1 values, each (W, 2, n) float64): a grid query computes the P1 values it
+    has not seen once (W batched network calls, n_p points each); a repeated single-point query
+    looks them up. A time t belongs to the window with edges[w] <= t < edges[w + 1] (a window's
+    start to itself, where phi = 0 and its state is exactly the start state); t beyond the last
+    edge (extrapolation) to the last window."""
+
+    def __init__(self, inner: Evaluator, arch: Architecture, edges: np.ndarray, cache_size: int = 4096) -> None:
+        self.inner, self.arch = inner, arch
+        self.edges = np.asarray(edges, np.float64)
+        self.lengths = np.diff(self.edges)
+        self.cache_size = int(cache_size)
+        self._inner_edges = self.edges[1:-1]
+        self._start0 = np.array([arch.delta0, arch.omega0], np.float64)  # (2, n)
+        self.params: list[Any] = []
+        self._cache: OrderedDict[float, np.ndarray] = OrderedDict()
+
+    def load(self, theta: np.ndarray) -> None:
+        """Use the windows' parameters `theta` (W, n_params) float64 from now on."""
+        theta = np.asarray(theta, np.float64)
+        if theta.shape != (self.lengths.size, self.arch.n_params):
+            raise ValueError(f"theta has shape {theta.shape}, {self.lengths.size} windows of this "
+                             f"architecture need ({self.lengths.size}, {self.arch.n_params})")
+        self.params = [self.inner.prepare(row) for row in theta]
+        self._cache.clear()
+
+    def starts(self, P1: np.ndarray) -> np.ndarray:
+        """Every window's start state for each P1: (len(P1), W, 2, n) float64, from the cache or
+        computed (for the P1 values not in it, together) and cached."""
+        keys = P1.tolist()
+        cache = self._cache
+        if len(keys) == 1 and keys[0] in cache:  # the single-point query's path
+            cache.move_to_end(keys[0])
+            return cache[keys[0]][None]
+        missing = [key for key in dict.fromkeys(keys) if key not in cache]
+        if missing:
+            walked = walk(self.inner, self.params, self.lengths, np.array(missing, np.float64), self._start0)
+            for key, row in zip(missing, walked):
+                cache[key] = row
+        out = np.stack([cache[key] for key in keys])
+        for key in dict.fromkeys(keys):
+            cache.move_to_end(key)
+        while len(cache) > self.cache_size:
+            cache.popitem(last=False)
+        return out
+
+    def window_of(self, t: np.ndarray) -> np.ndarray:
+        """The window index of each time t (s)."""
+        return np.searchsorted(self._inner_edges, t, side="right")
+
+    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        starts = self.starts(P1)
+        which = self.window_of(t)
+        if t.size == 1:  # one window: no scatter
+            w = int(which[0])
+            return self.inner.grid(self.params[w], t - self.edges[w], P1, starts[:, w])
+        delta = np.empty((P1.size, t.size, self.arch.machines))
+        omega = np.empty_like(delta)
+        for w in np.unique(which).tolist():
+            idx = np.flatnonzero(which == w)
+            d, o = self.inner.grid(self.params[w], t[idx] - self.edges[w], P1, starts[:, w])
+            delta[:, idx], omega[:, idx] = d, o
+        return delta, omega
+
+    def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        starts = self.starts(P1)
+        which = self.window_of(t)
+        delta = np.empty((t.size, self.arch.machines))
+        omega = np.empty_like(delta)
+        for w in np.unique(which).tolist():
+            idx = np.flatnonzero(which == w)
+            d, o = self.inner.pairs(self.params[w], t[idx] - self.edges[w], P1[idx], starts[idx, w])
+            delta[idx], omega[idx] = d, o
+        return delta, omega
+
+    def prepare(self, theta: np.ndarray) -> Any:
+        raise TypeError("a time-marching model is not a window: use load()")
+
+    def grid(self, params, t, P1, start):
+        raise TypeError("a time-marching model is not a window: use __call__()")
+
+    def pairs(self, params, t, P1, start):
+        raise TypeError("a time-marching model is not a window: use points()")
+
+
+def walk(inner: Evaluator, params: list[Any], lengths: np.ndarray, P1: np.ndarray, start0: np.ndarray
+         ) -> np.ndarray:
+    """The start states (len(P1), len(params) + 1, 2, n) float64 of windows 0..len(params) for each
+    P1: window 0 starts at `start0` (2, n) (the case's initial state), window w + 1 at the end of
+    window w (its network `params[w]` at the window's length `lengths[w]` s from its start state)."""
+    out = np.empty((P1.size, len(params) + 1) + start0.shape)
+    out[:, 0] = start0
+    for w, prepared in enumerate(params):
+        delta, omega = inner.pairs(prepared, np.full(P1.size, lengths[w]), P1, out[:, w])
+        out[:, w + 1, 0], out[:, w + 1, 1] = delta, omega
+    return out
 
 
 @dataclass(frozen=True)
@@ -91,8 +217,13 @@ class PinnSolver(AbstractSolver):
     (config, case, architecture, identified m and d); a model saved by one backend loads into the
     other.
 
-    Options: every `PinnConfig` field (seed, max_seconds, max_iterations, ...; the named CONFIGS
-    set several), threads (2: the backend's intra-op threads; the optimiser's BLAS runs on one, see `_train`),
+    Shapes: `solve` gives (len(P1), len(t), n) for the case's n machines, `solve_points` (n_s, n);
+    generator 1's mechanical power is P1, the others' the case's p_m. With `window` (the `marching`
+    config) the model is a chain of window networks (`MarchingEvaluator`): `theta` is then
+    (W, n_params) and `windows` the window edges (s); otherwise `windows` is None.
+
+    Options: every `PinnConfig` field (seed, max_seconds, max_iterations, window, ...; the named
+    CONFIGS set several), threads (2: the backend's intra-op threads; the optimiser's BLAS runs on one, see `_train`),
     progress (None: a tqdm bar on a terminal, quiet under pytest / CI / a pipe; True / False),
     query ("framework": `solve` runs the backend's own evaluator, in the config's dtype;
     "numba": `solvers.pinn.compiled.NumbaEvaluator`, the same network compiled by numba in float64,
@@ -120,7 +251,7 @@ class PinnSolver(AbstractSolver):
         """Set threads and precision before the first computation; return a note ("" if none)."""
 
     @abc.abstractmethod
-    def _compile(self, arch: Architecture, problem: Problem, system: SwingSystem, dtype: str) -> Trainer:
+    def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
         """The training functions of `problem` for a network `arch` computing in `dtype`."""
 
     @abc.abstractmethod
@@ -129,12 +260,19 @@ class PinnSolver(AbstractSolver):
 
     # ---- training ----------------------------------------------------------------------------
 
+    @property
+    def physics(self) -> Physics:
+        """The case's swing equations (`network.Physics`), built once."""
+        if getattr(self, "_physics_case", None) is not self.case:
+            self._physics, self._physics_case = Physics.of(self.case), self.case
+        return self._physics
+
     def _train(self, arch: Architecture, problem: Problem, theta0: np.ndarray, max_iterations: int,
                deadline: float, what: str, trainer: Trainer | None = None) -> OptimResult:
         """Minimise `problem`'s loss from `theta0` with the configured optimiser, using `trainer`
         (compiled here when None)."""
         config = self.pinn_config
-        trainer = trainer or self._compile(arch, problem, smib_system(self.case), config.dtype)
+        trainer = trainer or self._compile(arch, problem, self.physics, config.dtype)
         bar = None
         progress = None
         if _progress_enabled(self.options["progress"]):
@@ -171,6 +309,8 @@ class PinnSolver(AbstractSolver):
         note = self._prepare_backend()
         config = self.pinn_config
         arch = Architecture.of(config, self.case)
+        if config.window is not None:
+            return self._fit_marching(arch, deadline, note)
         problem = spec.forward_problem(config, self.case)
         theta0 = spec.init_theta(arch, config.seed)
         evaluator = self._query_evaluator(arch)  # compiled within the time budget
@@ -179,18 +319,66 @@ class PinnSolver(AbstractSolver):
         return FitReport(seconds=0.0, iterations=result.iterations, loss=result.loss,
                          message=result.message + (f"; {note}" if note else ""))
 
+    def _fit_marching(self, arch: Architecture, deadline: float, note: str) -> FitReport:
+        """Train the windows of a time-marching model in turn (see `PinnConfig`): window w's points
+        get the start states the trained windows 0..w-1 reach at their P1 (constants of its
+        training, from the framework's evaluator whatever `query` says, so that training does not
+        depend on it); each window has `max_iterations` and an equal share of the time left."""
+        config = self.pinn_config
+        edges = spec.window_edges(self.case.t_final, config.window)
+        lengths = np.diff(edges)
+        start0 = np.array([arch.delta0, arch.omega0], np.float64)
+        evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
+        walker = evaluator.inner if self.options["query"] == "framework" else self._make_evaluator(arch, config.dtype)
+        thetas: list[np.ndarray] = []
+        prepared: list[Any] = []
+        iterations, losses, messages = 0, [], []
+        for w in range(lengths.size):
+            problem = spec.window_problem(config, self.case, edges, w)
+            problem = dataclasses.replace(
+                problem,
+                start_u=walk(walker, prepared, lengths, problem.p_u, start0)[:, -1] if problem.t_u.size else None,
+                start_f=walk(walker, prepared, lengths, problem.p_f, start0)[:, -1],
+            )
+            # the windows' problems differ in their arrays only: the backends compile once
+            # (`Problem.signature`)
+            trainer = self._compile(arch, problem, self.physics, config.dtype)
+            now = time.perf_counter()
+            window_deadline = now + (deadline - now) / (lengths.size - w)  # an equal share of what is left
+            theta0 = spec.init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
+            result = self._train(arch, problem, theta0, config.max_iterations, window_deadline,
+                                 f"fit window {w + 1}/{lengths.size}", trainer)
+            thetas.append(result.theta)
+            prepared.append(walker.prepare(result.theta))
+            iterations += result.iterations
+            losses.append(result.loss)
+            messages.append(result.message)
+        self.windows = edges
+        self._set_model(arch, np.stack(thetas), evaluator)
+        worst = int(np.argmax(losses))
+        message = (f"{lengths.size} windows of {config.window:g} s, {iterations} iterations; largest loss "
+                   f"{losses[worst]:.3g} in window {worst + 1}: {messages[worst]}")
+        return FitReport(seconds=0.0, iterations=iterations, loss=float(np.sum(losses)),
+                         message=message + (f"; {note}" if note else ""))
+
     def _set_model(self, arch: Architecture, theta: np.ndarray, evaluator: Evaluator | None = None) -> None:
+        """Use the network(s) `theta` ((n_params,), or (W, n_params) with `self.windows`)."""
         self.arch, self.theta = arch, np.asarray(theta, np.float64)
-        self._evaluate = evaluator or self._query_evaluator(arch)
+        if self.theta.ndim == 1:
+            self.windows = None
+        self._evaluate = evaluator or self._query_evaluator(arch, self.windows)
         self._evaluate.load(self.theta)
 
-    def _query_evaluator(self, arch: Architecture) -> Evaluator:
-        """The evaluator the `query` option names, compiled and warmed up."""
+    def _query_evaluator(self, arch: Architecture, edges: np.ndarray | None = None) -> Evaluator:
+        """The evaluator the `query` option names, compiled and warmed up; for a time-marching model
+        (window `edges` s) the `MarchingEvaluator` over it."""
         if self.options["query"] == "numba":
             from solvers.pinn.compiled import NumbaEvaluator
 
-            return NumbaEvaluator(arch, threads=self.options["threads"])
-        return self._make_evaluator(arch, self.pinn_config.dtype)
+            inner = NumbaEvaluator(arch, threads=self.options["threads"])
+        else:
+            inner = self._make_evaluator(arch, self.pinn_config.dtype)
+        return inner if edges is None else MarchingEvaluator(inner, arch, edges)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self._evaluate(t, P1)
@@ -199,66 +387,72 @@ class PinnSolver(AbstractSolver):
         return self._evaluate.points(t, P1)
 
     def _identify(self, obs: Observations) -> Estimate:
-        """Train a network with log m, log d as its last two parameters (LM or L-BFGS, as configured).
+        """Train a network with log m_1..n, log d_1..n as its last 2n parameters (LM or L-BFGS, as
+        configured), from `spec.start_guess` (one network over the whole horizon, also in
+        time-marching configurations).
 
-        Uncertainty: the Gauss-Newton covariance of (log m, log d) conditional on the trained network,
-        held fixed: the swing residual f = m delta_tt + d delta_t + b sin(delta) - P1 (or its omega
-        form) at the collocation points is linear in m and d, so its Jacobian columns m delta_tt and
-        d delta_t are exactly r(2 m) - r(m) and r(2 d) - r(d) (two residual evaluations, no (N, P)
-        Jacobian, the same for both optimisers); the data residuals do not depend on m, d. The
-        residual variance is that of the swing residuals, s^2 = ||f||^2 / (n_f - 2). It ignores the
-        network's own uncertainty (its weights trade off against m, d; the full Jacobian over all
-        weights is rank-deficient), so it is a lower bound on the spread, not a calibrated interval."""
+        Uncertainty: the Gauss-Newton covariance (2n x 2n) of (log m_1..n, log d_1..n) conditional
+        on the trained network, held fixed: the swing residual f_k = m_k delta_k'' + d_k delta_k' +
+        P_e,k - P_k (or its omega form) at the collocation points is linear in m_k and d_k, so its
+        Jacobian columns are exactly r(2 m_k) - r(m_k) and r(2 d_k) - r(d_k) (2n residual
+        evaluations, no (N, P) Jacobian, the same for both optimisers); the data residuals do not
+        depend on m, d. The residual variance is that of the swing residuals,
+        s^2 = ||f||^2 / (n_f n - 2n). It ignores the network's own uncertainty (its weights trade off
+        against m, d; the full Jacobian over all weights is rank-deficient), so it is a lower bound
+        on the spread, not a calibrated interval."""
         config = self.pinn_config
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
+        n = self.case.n
         arch = Architecture.of(config, self.case, identification=True,
                                p_range=spec.identification_p_range(self.case, obs))
         problem = spec.identification_problem(config, self.case, obs)
-        theta0 = spec.init_theta(arch, config.seed, config.m_init, config.d_init)
-        trainer = self._compile(arch, problem, smib_system(self.case), config.dtype)
+        theta0 = spec.init_theta(arch, config.seed, *spec.start_guess(config, self.case))
+        trainer = self._compile(arch, problem, self.physics, config.dtype)
         result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify", trainer)
-        m, d = np.exp(result.theta[-2:])
-        self.identification = {"m": float(m), "d": float(d), "arch": arch, "theta": result.theta}
-        success = result.success and bool(np.isfinite([m, d]).all())
+        m, d = np.exp(result.theta[-2 * n:-n]), np.exp(result.theta[-n:])
+        self.identification = {"m": m, "d": d, "arch": arch, "theta": result.theta}
+        success = result.success and bool(np.isfinite(np.concatenate([m, d])).all())
         message = result.message + (f"; {note}" if note else "")
         if not success:
-            return Estimate(float(m), float(d), result.iterations, False, message)
+            return Estimate(m, d, result.iterations, False, message)
         residuals = trainer.residuals
         n_data = problem.targets.size
 
         def swing(theta: np.ndarray) -> np.ndarray:  # the m, d-dependent swing residuals, weighted
-            return residuals(theta)[n_data:].reshape(problem.t_f.size, -1)[:, -1]
+            return residuals(theta)[n_data:].reshape(problem.t_f.size, -1)[:, -n:].reshape(-1)
 
         f = swing(result.theta)
         columns = []
-        for k in (-2, -1):  # log m, log d: the residual is linear in exp of each
+        for k in range(-2 * n, 0):  # log m_1..n, log d_1..n: the residual is linear in exp of each
             doubled = result.theta.copy()
             doubled[k] += np.log(2.0)
             columns.append(swing(doubled) - f)
         cov, dof, condition = gauss_newton_covariance(np.stack(columns, axis=1), f)
-        return Estimate(float(m), float(d), result.iterations, True, message, cov, dof, condition)
+        return Estimate(m, d, result.iterations, True, message, cov, dof, condition)
 
     # ---- persistence -------------------------------------------------------------------------
 
     def save(self, path) -> tuple:
-        """Write `<path>.npz` (weights) and `<path>.json` (config, case, architecture, the last
-        identification); returns the two paths. Loadable by either backend."""
+        """Write `<path>.npz` (weights, every window's for a time-marching model) and `<path>.json`
+        (config, case, architecture, window edges, the last identification); returns the two paths.
+        Loadable by either backend."""
         if not self.fitted:
             raise NotFittedError(f"{self.name}: nothing to save before fit() (or load())")
         return spec.save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
-                               arch=self.arch, theta=self.theta,
+                               arch=self.arch, theta=self.theta, windows=self.windows,
                                identification=getattr(self, "identification", None))
 
     def load(self, path) -> PinnSolver:
         """Load what either backend saved at `path` (its config replaces this solver's config
-        fields; threads and progress stay) and return this solver, fitted."""
+        fields; threads, progress and query stay) and return this solver, fitted."""
         saved = spec.load_model(path)
         if saved["case"] != self.case:
             raise ValueError(f"{path}: saved for case {saved['case']!r}, this solver has {self.case!r}")
         self.options.update(saved["config"].to_json())
         self.pinn_config = saved["config"]
         self._prepare_backend()
+        self.windows = saved["windows"]
         self._set_model(saved["arch"], saved["theta"])
         if saved["identification"] is not None:
             self.identification = saved["identification"]

@@ -1,7 +1,8 @@
 """A compiled (numba) query of a trained PINN: delta and omega without torch or JAX.
 
-The forward pass of any `spec.Architecture` network (any layer sizes, one or two outputs, with or
-without the hard initial condition), computed in float64 from the flat float64 parameter vector,
+The forward pass of any `spec.Architecture` network (any layer sizes, n machines, one or two
+outputs per machine, with or without the hard initial condition, from the architecture's initial
+state or each P1's own: the windows of a time-marching model), computed in float64 from the flat float64 parameter vector,
 exactly as `network.delta_omega`: inputs normalised to [-1, 1], tanh hidden layers, a linear output
 layer, omega = d delta/dt by forward-mode differentiation written out by hand (the t-tangent
 enters the first layer as 2 / (t_hi - t_lo) times the t-column of W_0; through each hidden layer
@@ -28,7 +29,7 @@ import math
 import numba
 import numpy as np
 
-from solvers.pinn.common import Evaluator
+from solvers.pinn.common import Evaluator, MarchingEvaluator
 from solvers.pinn.spec import Architecture, load_model
 
 __all__ = ["NumbaEvaluator", "compiled_model"]
@@ -36,7 +37,7 @@ __all__ = ["NumbaEvaluator", "compiled_model"]
 # Fused multiply-adds only: no reassociation, no NaN or infinity assumptions
 _FASTMATH = {"contract"}
 _BLOCK = 64  # points per block: the scratch (4 x width x 64 doubles) stays in L1
-_N_HEAD = 6  # params[0:6] = t_lo, 2 / (t_hi - t_lo), p_lo, 2 / (p_hi - p_lo), delta0, omega0
+_N_HEAD = 4  # params[0:4] = t_lo, 2 / (t_hi - t_lo), p_lo, 2 / (p_hi - p_lo); then the flat weights
 # expm1 on [-ln2 / 2, ln2 / 2]: Cody-Waite split of ln 2 and Taylor coefficients
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
@@ -67,21 +68,22 @@ def _tanh_block(z, h, kbits, m):
 
 
 @numba.njit(error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _points(t, p, params, sizes, out, q0, q1, scratch, kbits):
+def _points(t, p, params, sizes, start, srow, out, q0, q1, scratch, misc, kbits):
     """delta and omega of the flattened grid points q0 <= q < q1 (q = i n_t + j for P1[i], t[j])
-    into out[0] and out[1] (2, n_p, n_t)."""
+    into out[0] and out[1] (2, n_p, n_t, n); P1[i]'s start state is start[i srow] (2, n)."""
     n_t = t.shape[0]
-    t_lo, ct, p_lo, cp, delta0, omega0 = params[0], params[1], params[2], params[3], params[4], params[5]
+    t_lo, ct, p_lo, cp = params[0], params[1], params[2], params[3]
     hard_ic = sizes[0] == 1
     n_layers = sizes[1]
     n_out = sizes[2 + n_layers]
-    tangent = n_out == 1
+    nm = sizes[3 + n_layers]
+    tangent = n_out == nm
     h, g, z, zt = scratch[0], scratch[1], scratch[2], scratch[3]
-    tn, pn, n1, x = scratch[4, 0], scratch[4, 1], scratch[4, 2], scratch[4, 3]
-    for start in range(q0, q1, _BLOCK):
-        m = min(_BLOCK, q1 - start)
+    tn, pn = misc[0], misc[1]
+    for first in range(q0, q1, _BLOCK):
+        m = min(_BLOCK, q1 - first)
         for k in range(m):
-            q = start + k
+            q = first + k
             i = q // n_t
             tn[k] = (t[q - i * n_t] - t_lo) * ct - 1.0
             pn[k] = (p[i] - p_lo) * cp - 1.0
@@ -119,24 +121,30 @@ def _points(t, p, params, sizes, out, q0, q1, scratch, kbits):
                     for k in range(m):
                         g[v, k] = (1.0 - h[v, k] * h[v, k]) * zt[v, k]
             off = b_off + width
-        # linear output layer: N_1 (and its t-tangent, or N_2)
+        # linear output layer, per machine c: N_c (and its t-tangent, or the omega output N_{n+c})
         n_in = sizes[1 + n_layers]
         b_off = off + n_in * n_out
-        for k in range(m):
-            n1[k] = params[b_off]
-            x[k] = 0.0 if tangent else params[b_off + 1]
-        for u in range(n_in):
-            w1 = params[off + u * n_out]
-            w2 = params[off + u * n_out + n_out - 1]
+        for c in range(nm):
+            n1, x = misc[2 + c], misc[2 + nm + c]
+            c2 = c if tangent else nm + c
             for k in range(m):
-                n1[k] += h[u, k] * w1
-            for k in range(m):
-                x[k] += (g[u, k] if tangent else h[u, k]) * w2
+                n1[k] = params[b_off + c]
+                x[k] = 0.0 if tangent else params[b_off + c2]
+            for u in range(n_in):
+                w1 = params[off + u * n_out + c]
+                w2 = params[off + u * n_out + c2]
+                for k in range(m):
+                    n1[k] += h[u, k] * w1
+                for k in range(m):
+                    x[k] += (g[u, k] if tangent else h[u, k]) * w2
         for k in range(m):
-            q = start + k
+            q = first + k
             i = q // n_t
             j = q - i * n_t
-            out[0, i, j], out[1, i, j] = _head(t[j], n1[k], x[k], delta0, omega0, hard_ic, tangent)
+            row = i * srow
+            for c in range(nm):
+                out[0, i, j, c], out[1, i, j, c] = _head(t[j], misc[2 + c, k], misc[2 + nm + c, k],
+                                                         start[row, 0, c], start[row, 1, c], hard_ic, tangent)
 
 
 @numba.njit(error_model="numpy", fastmath=_FASTMATH, cache=True)
@@ -153,14 +161,15 @@ def _head(tv, n1, x, delta0, omega0, hard_ic, tangent):
 
 
 @numba.njit(error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _one_point(tv, pv, params, sizes, buf, kbits):
-    """(delta, omega) at one point, vectorised over the units of a layer instead of over points:
-    the same operations in the same order as `_points` (so the same bits), without its per-loop
-    cost, which dominates for a handful of points."""
+def _one_point(tv, pv, params, sizes, buf, kbits, start, row, res):
+    """(delta, omega) of every machine at one point into res (2, n), vectorised over the units of a
+    layer instead of over points: the same operations in the same order as `_points` (so the same
+    bits), without its per-loop cost, which dominates for a handful of points."""
     ct, cp = params[1], params[3]
     n_layers = sizes[1]
     n_out = sizes[2 + n_layers]
-    tangent = n_out == 1
+    nm = sizes[3 + n_layers]
+    tangent = n_out == nm
     h, g, z, zt = buf[0], buf[1], buf[2], buf[3]
     tn = (tv - params[0]) * ct - 1.0
     pn = (pv - params[2]) * cp - 1.0
@@ -180,12 +189,12 @@ def _one_point(tv, pv, params, sizes, buf, kbits):
             z[v] = params[b_off + v]
             zt[v] = 0.0
         for u in range(n_in):
-            hu, gu, row = h[u], g[u], off + u * width
+            hu, gu, r = h[u], g[u], off + u * width
             for v in range(width):
-                z[v] += hu * params[row + v]
+                z[v] += hu * params[r + v]
             if tangent:
                 for v in range(width):
-                    zt[v] += gu * params[row + v]
+                    zt[v] += gu * params[r + v]
         _tanh_block(z, h, kbits, width)
         if tangent:
             for v in range(width):
@@ -193,65 +202,78 @@ def _one_point(tv, pv, params, sizes, buf, kbits):
         off = b_off + width
     n_in = sizes[1 + n_layers]
     b_off = off + n_in * n_out
-    n1 = params[b_off]
-    x = 0.0 if tangent else params[b_off + 1]
-    for u in range(n_in):
-        n1 += h[u] * params[off + u * n_out]
-        x += (g[u] if tangent else h[u]) * params[off + u * n_out + n_out - 1]
-    return _head(tv, n1, x, params[4], params[5], sizes[0] == 1, tangent)
+    hard_ic = sizes[0] == 1
+    for c in range(nm):
+        c2 = c if tangent else nm + c
+        n1 = params[b_off + c]
+        x = 0.0 if tangent else params[b_off + c2]
+        for u in range(n_in):
+            n1 += h[u] * params[off + u * n_out + c]
+            x += (g[u] if tangent else h[u]) * params[off + u * n_out + c2]
+        res[0, c], res[1, c] = _head(tv, n1, x, start[row, 0, c], start[row, 1, c], hard_ic, tangent)
 
 
 @numba.njit(error_model="numpy", fastmath=_FASTMATH, cache=True)
 def _scratch(sizes, block):
-    width = 4
-    for layer in range(1, sizes[1] + 1):
+    """Scratch of the kernels: (4, width, block) for h, h_t, z, z_t; (2 + 2n, block) for the
+    normalised inputs and each machine's outputs; int64 (max(width, block),) for `_tanh_block`."""
+    n_layers = sizes[1]
+    width = 1
+    for layer in range(1, n_layers + 1):
         width = max(width, sizes[2 + layer])
-    return np.empty((5, width, block)), np.empty(max(width, block), np.int64)
+    return (np.empty((4, width, block)), np.empty((2 + 2 * sizes[3 + n_layers], block)),
+            np.empty(max(width, block), np.int64))
 
 
 _SMALL = 16  # fewer points than this: one point at a time (`_one_point`)
 
 
 @numba.njit(error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _range(t, p, params, sizes, out, q0, q1):
+def _range(t, p, params, sizes, start, srow, out, q0, q1):
     n_t = t.shape[0]
     if q1 - q0 < _SMALL:
-        scratch, kbits = _scratch(sizes, 1)
+        scratch, _, kbits = _scratch(sizes, 1)
         buf = scratch[:, :, 0]
+        res = np.empty((2, out.shape[3]))
         for q in range(q0, q1):
             i = q // n_t
             j = q - i * n_t
-            out[0, i, j], out[1, i, j] = _one_point(t[j], p[i], params, sizes, buf, kbits)
+            _one_point(t[j], p[i], params, sizes, buf, kbits, start, i * srow, res)
+            out[0, i, j, :] = res[0]
+            out[1, i, j, :] = res[1]
     else:
-        scratch, kbits = _scratch(sizes, _BLOCK)
-        _points(t, p, params, sizes, out, q0, q1, scratch, kbits)
+        scratch, misc, kbits = _scratch(sizes, _BLOCK)
+        _points(t, p, params, sizes, start, srow, out, q0, q1, scratch, misc, kbits)
 
 
 @numba.njit(nogil=True, error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _query(t, p, params, sizes):
-    out = np.empty((2, p.shape[0], t.shape[0]))
-    _range(t, p, params, sizes, out, 0, p.shape[0] * t.shape[0])
+def _query(t, p, params, sizes, start, srow):
+    out = np.empty((2, p.shape[0], t.shape[0], sizes[3 + sizes[1]]))
+    _range(t, p, params, sizes, start, srow, out, 0, p.shape[0] * t.shape[0])
     return out
 
 
 @numba.njit(nogil=True, parallel=True, error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _query_parallel(t, p, params, sizes, chunk):
+def _query_parallel(t, p, params, sizes, start, srow, chunk):
     n = p.shape[0] * t.shape[0]
-    out = np.empty((2, p.shape[0], t.shape[0]))
+    out = np.empty((2, p.shape[0], t.shape[0], sizes[3 + sizes[1]]))
     for c in numba.prange((n + chunk - 1) // chunk):
-        _range(t, p, params, sizes, out, c * chunk, min(n, (c + 1) * chunk))
+        _range(t, p, params, sizes, start, srow, out, c * chunk, min(n, (c + 1) * chunk))
     return out
 
 
 @numba.njit(nogil=True, error_model="numpy", fastmath=_FASTMATH, cache=True)
-def _pairs(t, p, params, sizes):
-    """(2, n): delta and omega at the points (t[q], p[q]), one `_one_point` each (the same bits as
-    a one-point grid query)."""
-    out = np.empty((2, t.shape[0]))
-    scratch, kbits = _scratch(sizes, 1)
+def _pairs(t, p, params, sizes, start, srow):
+    """(2, n_s, n): delta and omega at the points (t[q], p[q]), start state start[q srow], one
+    `_one_point` each (the same bits as a one-point grid query)."""
+    out = np.empty((2, t.shape[0], sizes[3 + sizes[1]]))
+    scratch, _, kbits = _scratch(sizes, 1)
     buf = scratch[:, :, 0]
+    res = np.empty((2, out.shape[2]))
     for q in range(t.shape[0]):
-        out[0, q], out[1, q] = _one_point(t[q], p[q], params, sizes, buf, kbits)
+        _one_point(t[q], p[q], params, sizes, buf, kbits, start, q * srow, res)
+        out[0, q, :] = res[0]
+        out[1, q, :] = res[1]
     return out
 
 
@@ -260,8 +282,10 @@ _CHUNK = 16 * _BLOCK  # points per parallel task
 
 
 class NumbaEvaluator(Evaluator):
-    """delta (rad) and omega (rad/s), each (len(P1), len(t)) float64, of networks `arch` (not the
+    """delta (rad) and omega (rad/s), each (len(P1), len(t), n) float64, of networks `arch` (not the
     identification architectures), computed in float64 by numba; compiled and warmed up when made.
+    `grid` / `pairs` take each P1's or point's start state (time-marching windows), so a
+    `common.MarchingEvaluator` over this one is the compiled query of a time-marching model.
 
     `threads` > 1: queries of at least `_PARALLEL_MIN` points are split over that many numba threads
     (prange over chunks of the flattened grid). The same point gives the same bits whatever the
@@ -273,9 +297,9 @@ class NumbaEvaluator(Evaluator):
         if arch.n_extra:
             raise ValueError("NumbaEvaluator evaluates forward networks, not identification networks")
         self.arch, self.threads = arch, int(threads)
-        self._sizes = np.array([int(arch.hard_ic), len(arch.sizes) - 1, *arch.sizes], np.int64)
-        self._head = np.array([arch.t_lo, 2.0 / (arch.t_hi - arch.t_lo), arch.p_lo,
-                               2.0 / (arch.p_hi - arch.p_lo), arch.delta0, arch.omega0])
+        self._sizes = np.array([int(arch.hard_ic), len(arch.sizes) - 1, *arch.sizes, arch.machines], np.int64)
+        self._head = np.array([arch.t_lo, 2.0 / (arch.t_hi - arch.t_lo), arch.p_lo, 2.0 / (arch.p_hi - arch.p_lo)])
+        self._start0 = np.array([[arch.delta0, arch.omega0]], np.float64)  # (1, 2, n), row stride 0
         self.load(np.zeros(arch.n_params))
         t_grid = np.linspace(arch.t_lo, arch.t_hi, 201)
         p_grid = np.linspace(arch.p_lo, arch.p_hi, 100)
@@ -283,29 +307,52 @@ class NumbaEvaluator(Evaluator):
             self(t, p)
         self.points(t_grid[:2], p_grid[:2])
 
-    def load(self, theta: np.ndarray) -> None:
+    def prepare(self, theta: np.ndarray) -> np.ndarray:
         theta = np.asarray(theta, np.float64)
         if theta.shape != (self.arch.n_params,):
             raise ValueError(f"theta has shape {theta.shape}, the architecture needs ({self.arch.n_params},)")
-        self._params = np.concatenate([self._head, theta])  # one contiguous float64 array
+        return np.concatenate([self._head, theta])  # one contiguous float64 array
+
+    def load(self, theta: np.ndarray) -> None:
+        self._params = self.prepare(theta)
 
     def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # written out, not through `grid`: a single-point query costs ~4 us, a call ~0.3 us of it
         if self.threads > 1 and t.shape[0] * P1.shape[0] >= _PARALLEL_MIN:
             numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
-            out = _query_parallel(t, P1, self._params, self._sizes, _CHUNK)
+            out = _query_parallel(t, P1, self._params, self._sizes, self._start0, 0, _CHUNK)
         else:
-            out = _query(t, P1, self._params, self._sizes)
+            out = _query(t, P1, self._params, self._sizes, self._start0, 0)
         return out[0], out[1]
 
     def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        out = _pairs(t, P1, self._params, self._sizes)
+        out = _pairs(t, P1, self._params, self._sizes, self._start0, 0)
+        return out[0], out[1]
+
+    def grid(self, params: np.ndarray, t: np.ndarray, P1: np.ndarray, start: np.ndarray, srow: int = 1
+             ) -> tuple[np.ndarray, np.ndarray]:
+        start = np.ascontiguousarray(start, np.float64)
+        if self.threads > 1 and t.shape[0] * P1.shape[0] >= _PARALLEL_MIN:
+            numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+            out = _query_parallel(t, P1, params, self._sizes, start, srow, _CHUNK)
+        else:
+            out = _query(t, P1, params, self._sizes, start, srow)
+        return out[0], out[1]
+
+    def pairs(self, params: np.ndarray, t: np.ndarray, P1: np.ndarray, start: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        out = _pairs(np.ascontiguousarray(t, np.float64), np.ascontiguousarray(P1, np.float64), params,
+                     self._sizes, np.ascontiguousarray(start, np.float64), 1)
         return out[0], out[1]
 
 
-def compiled_model(path, threads: int = 1) -> NumbaEvaluator:
+def compiled_model(path, threads: int = 1) -> Evaluator:
     """The `NumbaEvaluator` of a model saved by either backend (`spec.save_model`, `<path>.npz`
-    and `<path>.json`), loaded with its weights: queries without torch or JAX."""
+    and `<path>.json`), loaded with its weights: queries without torch or JAX; for a time-marching
+    model the `MarchingEvaluator` over it."""
     saved = load_model(path)
-    evaluator = NumbaEvaluator(saved["arch"], threads)
+    evaluator: Evaluator = NumbaEvaluator(saved["arch"], threads)
+    if saved["windows"] is not None:
+        evaluator = MarchingEvaluator(evaluator, saved["arch"], saved["windows"])
     evaluator.load(saved["theta"])
     return evaluator

@@ -13,24 +13,37 @@ settings); if it has, the message of fit / identify says so. float64 runs under 
 
 from __future__ import annotations
 
+import functools
 import os
-from typing import ClassVar
+from collections import OrderedDict
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from systems.model import SwingSystem
 from solvers.pinn.common import Evaluator, PinnSolver, Trainer
-from solvers.pinn.network import Ops, delta_omega, jacobian_blocks, residual_vector
+from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem
 
 __all__ = ["OPS", "JaxPinn", "configure_threads"]
 
+
+def _asarray(x: np.ndarray, like: Any) -> Any:
+    # a constant of the traced computation, in the dtype it computes in
+    return jnp.asarray(x, dtype=like.dtype)
+
+
 OPS = Ops(
-    tanh=jnp.tanh, sin=jnp.sin, exp=jnp.exp, ones_like=jnp.ones_like, stack=jnp.stack,
-    concat=jnp.concatenate, jvp=jax.jvp, vmap=jax.vmap, jacrev=jax.jacrev,
+    tanh=jnp.tanh, sin=jnp.sin, cos=jnp.cos, exp=jnp.exp, ones_like=jnp.ones_like, stack=jnp.stack,
+    concat=jnp.concatenate, asarray=_asarray, jvp=jax.jvp, vmap=jax.vmap, jacrev=jax.jacrev,
 )
+_DATA_KEYS = ("t_u", "p_u", "targets", "t_f", "p_f", "start_u", "start_f")
+# The jitted training functions by (architecture, problem signature, case, dtype): shared by the
+# windows of a time-marching fit and by every solver of one configuration in the process (the seeds
+# of a run, a refit): XLA compiles each once. A few entries: each holds compiled executables.
+_JIT_CACHE: OrderedDict[tuple, tuple] = OrderedDict()
+_JIT_CACHE_SIZE = 8
 _DTYPES = {"float32": np.float32, "float64": np.float64}
 _threads_started: list[int] = []  # the thread count XLA started with, once known
 
@@ -64,19 +77,13 @@ class JaxPinn(PinnSolver):
     def _prepare_backend(self) -> str:
         return configure_threads(self.options["threads"])
 
-    def _compile(self, arch: Architecture, problem: Problem, system: SwingSystem, dtype: str) -> Trainer:
+    def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
         npdtype = _DTYPES[dtype]
         x64 = jax.enable_x64(dtype == "float64")
         with x64:
             data = {key: jnp.asarray(getattr(problem, key), dtype=npdtype)
-                    for key in ("t_u", "p_u", "targets", "t_f", "p_f")}
-
-        def vector(theta, data):
-            return residual_vector(arch, theta, data, OPS, system, problem)
-
-        residual_fn = jax.jit(vector)
-        jacobian_fn = jax.jit(lambda theta, data: jacobian_blocks(arch, theta, data, OPS, system, problem))
-        loss_grad_fn = jax.jit(jax.value_and_grad(lambda theta, data: jnp.sum(vector(theta, data) ** 2)))
+                    for key in _DATA_KEYS if getattr(problem, key) is not None}
+        residual_fn, jacobian_fn, loss_grad_fn = _jitted(arch, problem, physics, self.case, dtype)
 
         def wrap(fn):
             def call(theta: np.ndarray):
@@ -100,27 +107,66 @@ class JaxPinn(PinnSolver):
         return _JitEvaluator(arch, dtype)
 
 
+def _jitted(arch: Architecture, problem: Problem, physics: Physics, case: Any, dtype: str) -> tuple:
+    """The jitted residual, Jacobian and loss-and-gradient functions of (theta, data) for `problem`
+    and the problems of its signature (they use `problem` only for its sizes and weights, and
+    `physics` is `case`'s: the key holds what they depend on besides their arguments)."""
+    key = (arch, problem.signature, case, dtype)
+    if key in _JIT_CACHE:
+        _JIT_CACHE.move_to_end(key)
+        return _JIT_CACHE[key]
+
+    def vector(theta, data):
+        return residual_vector(arch, theta, data, OPS, physics, problem)
+
+    _JIT_CACHE[key] = (
+        jax.jit(vector),
+        jax.jit(lambda theta, data: jacobian_blocks(arch, theta, data, OPS, physics, problem)),
+        jax.jit(jax.value_and_grad(lambda theta, data: jnp.sum(vector(theta, data) ** 2))),
+    )
+    while len(_JIT_CACHE) > _JIT_CACHE_SIZE:
+        _JIT_CACHE.popitem(last=False)
+    return _JIT_CACHE[key]
+
+
+@functools.lru_cache(maxsize=_JIT_CACHE_SIZE)
+def _query_functions(arch: Architecture) -> tuple:
+    """The jitted query functions of networks `arch` (grid, points, and both with start states),
+    shared by every evaluator of the architecture in the process: each shape compiles once."""
+    # one stacked (2, n_p, n_t, n) result: one device-to-host conversion per query, not two
+    return (
+        jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t[None, :], p[:, None], OPS))),
+        jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t, p, OPS))),
+        jax.jit(lambda th, t, p, s: jnp.stack(
+            delta_omega(arch, th, t[None, :], p[:, None], OPS, (s[:, None, 0], s[:, None, 1])))),
+        jax.jit(lambda th, t, p, s: jnp.stack(delta_omega(arch, th, t, p, OPS, (s[:, 0], s[:, 1])))),
+    )
+
+
 class _JitEvaluator(Evaluator):
-    """delta (rad) and omega (rad/s) = d delta/dt by jax.jvp, (len(P1), len(t)), one jitted function
-    of (theta, t, P1); compiled here for the paper's query shapes (the 100 x 201 grid, one
-    trajectory, one point), others compile on their first call."""
+    """delta (rad) and omega (rad/s) = d delta/dt by jax.jvp, (len(P1), len(t), n), one jitted
+    function of (theta, t, P1) (and of the start states, for time-marching windows); compiled here
+    for the paper's query shapes (the 100 x 201 grid, one trajectory, one point), others compile on
+    their first call."""
 
     def __init__(self, arch: Architecture, dtype: str) -> None:
         self.npdtype = _DTYPES[dtype]
         self.x64 = jax.enable_x64(dtype == "float64")
-        # one stacked (2, n_p, n_t) result: one device-to-host conversion per query, not two
-        self.fn = jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t[None, :], p[:, None], OPS)))
-        self.paired = jax.jit(lambda th, t, p: jnp.stack(delta_omega(arch, th, t, p, OPS)))
+        self.fn, self.paired, self.fn_start, self.paired_start = _query_functions(arch)
         self.load(np.zeros(arch.n_params))
         t_grid = np.linspace(arch.t_lo, arch.t_hi, 201)
         p_grid = np.linspace(arch.p_lo, arch.p_hi, 100)
         for t, p in ((t_grid, p_grid), (t_grid, p_grid[:1]), (t_grid[:1], p_grid[:1])):
             self(t, p)
 
-    def load(self, theta: np.ndarray) -> None:
+    def prepare(self, theta: np.ndarray) -> Any:
         with self.x64:
-            self.theta = jnp.asarray(theta, self.npdtype)
+            return jnp.asarray(theta, self.npdtype)
 
+    def load(self, theta: np.ndarray) -> None:
+        self.theta = self.prepare(theta)
+
+    # __call__ and points are written out: a single-point query costs ~16 us, a helper call more
     def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with self.x64:
             out = self.fn(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
@@ -130,5 +176,21 @@ class _JitEvaluator(Evaluator):
     def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with self.x64:
             out = self.paired(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
+        both = np.array(out)
+        return both[0], both[1]
+
+    def grid(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dtype = self.npdtype
+        with self.x64:
+            out = self.fn_start(params, t.astype(dtype, copy=False), P1.astype(dtype, copy=False),
+                                start.astype(dtype, copy=False))
+        both = np.array(out)
+        return both[0], both[1]
+
+    def pairs(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dtype = self.npdtype
+        with self.x64:
+            out = self.paired_start(params, t.astype(dtype, copy=False), P1.astype(dtype, copy=False),
+                                    start.astype(dtype, copy=False))
         both = np.array(out)
         return both[0], both[1]

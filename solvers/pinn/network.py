@@ -5,10 +5,13 @@ elementwise functions and the functional autodiff transforms, which torch.func a
 same way (`jvp(f, primals, tangents)`, `vmap(f, in_dims)`, `jacrev(f)`). A backend supplies its
 `Ops` and compiles (jax.jit) or calls (torch) these functions; nothing here imports a framework.
 
-Shapes: t (s) and P1 (p.u.) are arrays of one broadcast shape S (a batch (n,), a grid
+Shapes: t (s) and P1 (p.u.) are arrays of one broadcast shape S (a batch (n_s,), a grid
 (n_p, n_t) from (1, n_t) and (n_p, 1), or scalars for per-point Jacobians); every output has shape
-S. `theta` is the flat parameter vector of `spec.Architecture` or its split list
-(`Architecture.split`); Jacobians are taken with respect to the split list.
+S + (n,), one entry per machine on the last axis (n = 1 for the SMIB). `theta` is the flat
+parameter vector of `spec.Architecture` or its split list (`Architecture.split`); Jacobians are
+taken with respect to the split list. A time-marching window's network takes each point's start
+state `start` = (delta_s, omega_s), arrays broadcasting to S + (n,), in place of the architecture's
+fixed initial condition, and t is the time since the window's start.
 """
 
 from __future__ import annotations
@@ -17,38 +20,48 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from systems.model import SwingSystem, residual
+import numpy as np
+
 from solvers.pinn.spec import Architecture, Problem
+from systems.cases import Case
+from systems.model import Coupling, coupling, residual
 
 __all__ = [
     "Ops",
+    "Physics",
     "data_terms",
     "delta_omega",
     "jacobian_blocks",
     "network_outputs",
     "physics_parameters",
     "physics_terms",
+    "powers",
     "residual_vector",
     "swing_residuals",
 ]
 
+Start = tuple[Any, Any] | None  # (delta_s rad, omega_s rad/s), each broadcasting to S + (n,)
+
 
 @dataclass(frozen=True)
 class Ops:
-    """A backend's elementwise functions (tanh, sin, exp), array helpers (ones_like, stack(seq, axis),
-    concat(seq, axis)) and functional autodiff (jvp, vmap, jacrev with JAX's call signatures).
+    """A backend's elementwise functions (tanh, sin, cos, exp), array helpers (ones_like,
+    stack(seq, axis), concat(seq, axis), asarray(numpy array, like) -> a constant of `like`'s
+    dtype) and functional autodiff (jvp, vmap, jacrev with JAX's call signatures).
 
     The t-derivatives are forward-mode (`jvp`) unless the backend supplies `d_dt` and `d2_dt2`
     (torch's reverse-mode autograd is faster for the loss gradient, see torch_pinn):
-    d_dt(f, t) -> (f(t), f'(t)) for f returning an array or a tuple of arrays, each output
-    depending on its own entry of t only; d2_dt2(f, t) -> (f, f', f'') for an array f."""
+    d_dt(f, t) -> (f(t), f'(t)) for f returning an array or a tuple of arrays, each S + (n,), each
+    output depending on its own entry of t only; d2_dt2(f, t) -> (f, f', f'') for an array f."""
 
     tanh: Callable
     sin: Callable
+    cos: Callable
     exp: Callable
     ones_like: Callable
     stack: Callable
     concat: Callable
+    asarray: Callable
     jvp: Callable
     vmap: Callable
     jacrev: Callable
@@ -56,13 +69,42 @@ class Ops:
     d2_dt2: Callable | None = None
 
 
-def network_outputs(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops) -> tuple[Any, ...]:
-    """The network's physical outputs: (delta,) rad, or (delta rad, omega rad/s) for two outputs.
+@dataclass(frozen=True, eq=False)
+class Physics:
+    """The swing equations a forward network satisfies, numpy float64 (each backend converts them to
+    its dtype where it uses them): the coupling of `systems.model.coupling`, m and d (n,) p.u., and
+    the mechanical powers P = P1 first + rest (p.u.; first = e_1, rest = p_m with generator 1's
+    entry 0: generator 1 gets P1, the others the case's p_m, as `Case.powers`)."""
 
-    Inputs are normalised to [-1, 1]; tanh hidden layers, linear output layer. With `hard_ic`,
-    phi = 1 - exp(-t) (t in s) and delta = delta0 + omega0 phi + phi^2 N_1 (so delta(0) = delta0
-    and delta'(0) = omega0 exactly), omega = omega0 + phi N_2. (A t^2 factor instead of phi^2 grows
-    to 400 over 20 s and scales the network's output badly; phi saturates at 1 after a few s.)"""
+    coupling: Coupling
+    m: np.ndarray
+    d: np.ndarray
+    first: np.ndarray
+    rest: np.ndarray
+
+    @classmethod
+    def of(cls, case: Case) -> Physics:
+        first = np.zeros(case.n)
+        first[0] = 1.0
+        rest = np.asarray(case.p_m, np.float64) * (1.0 - first)
+        return cls(coupling(case), np.asarray(case.m, np.float64), np.asarray(case.d, np.float64), first, rest)
+
+    @property
+    def n(self) -> int:
+        return self.m.size
+
+
+def network_outputs(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, start: Start = None
+                    ) -> tuple[Any, ...]:
+    """The network's physical outputs, each S + (n,): (delta,) rad, or (delta rad, omega rad/s) for
+    two outputs per machine.
+
+    Inputs are normalised to [-1, 1]; tanh hidden layers, linear output layer (columns delta_1..n,
+    then omega_1..n). With `hard_ic`, phi = 1 - exp(-t) (t in s) and per machine
+    delta = delta0 + omega0 phi + phi^2 N_1 (so delta(0) = delta0 and delta'(0) = omega0 exactly),
+    omega = omega0 + phi N_2, with (delta0, omega0) the architecture's or each point's `start`.
+    (A t^2 factor instead of phi^2 grows to 400 over 20 s and scales the network's output badly;
+    phi saturates at 1 after a few s.)"""
     layers = arch.layers(_params(arch, theta))
     tn = (t - arch.t_lo) * (2.0 / (arch.t_hi - arch.t_lo)) - 1.0
     pn = (p - arch.p_lo) * (2.0 / (arch.p_hi - arch.p_lo)) - 1.0
@@ -72,14 +114,19 @@ def network_outputs(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops) ->
         h = ops.tanh(h @ w + b)
     w, b = layers[-1]
     raw = h @ w + b
-    outs = tuple(raw[..., k] for k in range(arch.outputs))
+    n = arch.machines
+    outs = (raw,) if arch.outputs == 1 else (raw[..., :n], raw[..., n:])
     if not arch.hard_ic:
         return outs
-    phi = 1.0 - ops.exp(-t)
-    delta = arch.delta0 + phi * (arch.omega0 + phi * outs[0])
+    if start is None:
+        delta0, omega0 = ops.asarray(np.asarray(arch.delta0), t), ops.asarray(np.asarray(arch.omega0), t)
+    else:
+        delta0, omega0 = start
+    phi = (1.0 - ops.exp(-t))[..., None]
+    delta = delta0 + phi * (omega0 + phi * outs[0])
     if arch.outputs == 1:
         return (delta,)
-    return delta, arch.omega0 + phi * outs[1]
+    return delta, omega0 + phi * outs[1]
 
 
 def _params(arch: Architecture, theta: Any) -> list[Any]:
@@ -102,70 +149,96 @@ def _d2_dt2(f: Callable, t: Any, ops: Ops) -> tuple[Any, Any, Any]:
     return y, y_t, y_tt
 
 
-def delta_omega(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops) -> tuple[Any, Any]:
-    """delta (rad) and omega (rad/s): omega = d delta / dt by forward-mode autodiff of the network,
-    or the network's second output for two-output networks."""
+def delta_omega(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, start: Start = None
+                ) -> tuple[Any, Any]:
+    """delta (rad) and omega (rad/s), each S + (n,): omega = d delta / dt by forward-mode autodiff of
+    the network, or the network's second outputs for two-output networks."""
     if arch.outputs == 2:
-        return network_outputs(arch, theta, t, p, ops)
-    delta, delta_t = _d_dt(lambda s: network_outputs(arch, theta, s, p, ops)[0], t, ops)
+        return network_outputs(arch, theta, t, p, ops, start)
+    delta, delta_t = _d_dt(lambda s: network_outputs(arch, theta, s, p, ops, start)[0], t, ops)
     return delta, delta_t
 
 
-def physics_parameters(arch: Architecture, theta: Any, system: SwingSystem, ops: Ops) -> tuple[Any, Any]:
-    """(m, d): the system's, or exp of the last two entries of theta for identification."""
+def physics_parameters(arch: Architecture, theta: Any, physics: Physics, ops: Ops, like: Any
+                       ) -> tuple[Any, Any]:
+    """(m, d), each (n,) in `like`'s dtype: the case's, or exp of the last 2n entries of theta
+    (log m_1..n, log d_1..n) for identification."""
     if arch.n_extra:
         log_md = _params(arch, theta)[-1]
-        return ops.exp(log_md[0]), ops.exp(log_md[1])
-    return system.m[0], system.d[0]
+        n = arch.machines
+        return ops.exp(log_md[:n]), ops.exp(log_md[n:])
+    return ops.asarray(physics.m, like), ops.asarray(physics.d, like)
 
 
-def data_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, columns: int) -> Any:
-    """Predictions for the data targets, shape S + (columns,): delta, and omega when columns = 2."""
-    if columns == 1:
-        return network_outputs(arch, theta, t, p, ops)[0][..., None]
-    return ops.stack(delta_omega(arch, theta, t, p, ops), -1)
+def powers(p: Any, physics: Physics, ops: Ops) -> Any:
+    """Mechanical powers S + (n,) p.u. for generator 1's P1 = p (shape S): P1 and the others' p_m.
+    For one machine just p (the same arithmetic as before the N-machine model)."""
+    if physics.n == 1:
+        return p[..., None]
+    return p[..., None] * ops.asarray(physics.first, p) + ops.asarray(physics.rest, p)
+
+
+def data_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, columns: int,
+               start: Start = None) -> Any:
+    """Predictions for the data targets, shape S + (columns,): delta_1..n, and omega_1..n when
+    columns = 2n."""
+    if columns == arch.machines:
+        return network_outputs(arch, theta, t, p, ops, start)[0]
+    return ops.concat(delta_omega(arch, theta, t, p, ops, start), -1)
 
 
 def swing_residuals(outputs: Callable[[Any], tuple[Any, ...]], n_outputs: int, t: Any, p: Any, ops: Ops,
-                    system: SwingSystem, m: Any, d: Any) -> Any:
+                    physics: Physics, m: Any, d: Any) -> Any:
     """Swing-equation residuals (p.u.) of any differentiable `outputs(t) -> (delta,)` or
-    `(delta, omega)` (n_outputs 1 or 2), shape S + (r,), from `systems.model.residual` with
+    `(delta, omega)` (each S + (n,); n_outputs 1 or 2 per machine), shape S + (r,), from
+    `systems.model.residual` (the backend's sin and cos, machines on the last axis) with
     t-derivatives by (nested) forward-mode autodiff:
-    one output: r = 1, f = m delta_tt + d delta_t + b sin(delta) - P1;
-    two outputs: r = 2, f_omega = delta_t - omega (rad/s), f_delta = m omega_t + d omega + b sin(delta) - P1."""
+    one output: r = n, f_k = m_k delta_k'' + d_k delta_k' + P_e,k(delta) - P_k;
+    two outputs: r = 2n, first f_omega,k = delta_k' - omega_k (rad/s), then
+    f_delta,k = m_k omega_k' + d_k omega_k + P_e,k(delta) - P_k."""
+    k = physics.coupling.map(lambda x: ops.asarray(x, p))
+    P = powers(p, physics, ops)
     if n_outputs == 1:
         delta, delta_t, delta_tt = _d2_dt2(lambda x: outputs(x)[0], t, ops)
-        (f,) = residual(system, [delta], [delta_t], [delta_tt], [p], sin=ops.sin, m=[m], d=[d])
-        return f[..., None]
+        return residual(k, m, d, delta, delta_t, delta_tt, P, sin=ops.sin, cos=ops.cos)
     (delta, omega), (delta_t, omega_t) = _d_dt(outputs, t, ops)
-    (f_delta,) = residual(system, [delta], [omega], [omega_t], [p], sin=ops.sin, m=[m], d=[d])
-    return ops.stack([delta_t - omega, f_delta], -1)
+    f_delta = residual(k, m, d, delta, omega, omega_t, P, sin=ops.sin, cos=ops.cos)
+    return ops.concat([delta_t - omega, f_delta], -1)
 
 
-def physics_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, system: SwingSystem) -> Any:
+def physics_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, physics: Physics,
+                  start: Start = None) -> Any:
     """The network's swing-equation residuals, shape S + (r,) (see `swing_residuals`)."""
-    m, d = physics_parameters(arch, theta, system, ops)
-    return swing_residuals(lambda s: network_outputs(arch, theta, s, p, ops), arch.outputs, t, p, ops,
-                           system, m, d)
+    m, d = physics_parameters(arch, theta, physics, ops, p)
+    return swing_residuals(lambda s: network_outputs(arch, theta, s, p, ops, start), arch.outputs, t, p, ops,
+                           physics, m, d)
 
 
-def residual_vector(arch: Architecture, theta: Any, data: dict, ops: Ops, system: SwingSystem,
+def _start(data: dict, key: str) -> Start:
+    """The (delta_s, omega_s) columns of a (points, 2, n) start array in `data`, or None."""
+    s = data.get(key)
+    return None if s is None else (s[..., 0, :], s[..., 1, :])
+
+
+def residual_vector(arch: Architecture, theta: Any, data: dict, ops: Ops, physics: Physics,
                     problem: Problem) -> Any:
     """The weighted residual vector whose sum of squares is the loss:
     [w_u (prediction - target) for each data point and column, w_f f for each collocation point and
-    residual]; `data` holds the problem's arrays in the backend (t_u, p_u, targets, t_f, p_f)."""
+    residual]; `data` holds the problem's arrays in the backend (t_u, p_u, targets, t_f, p_f, and
+    start_u, start_f (points, 2, n) for a time-marching window)."""
     w_u, w_f = problem.weights
     columns = problem.targets.shape[1]
     blocks = []
     if problem.t_u.size:
-        pred = data_terms(arch, theta, data["t_u"], data["p_u"], ops, columns)
+        pred = data_terms(arch, theta, data["t_u"], data["p_u"], ops, columns, _start(data, "start_u"))
         blocks.append(w_u * (pred - data["targets"]).reshape(-1))
     if problem.t_f.size:
-        blocks.append(w_f * physics_terms(arch, theta, data["t_f"], data["p_f"], ops, system).reshape(-1))
+        f = physics_terms(arch, theta, data["t_f"], data["p_f"], ops, physics, _start(data, "start_f"))
+        blocks.append(w_f * f.reshape(-1))
     return ops.concat(blocks, 0)
 
 
-def jacobian_blocks(arch: Architecture, theta: Any, data: dict, ops: Ops, system: SwingSystem,
+def jacobian_blocks(arch: Architecture, theta: Any, data: dict, ops: Ops, physics: Physics,
                     problem: Problem) -> Any:
     """d residual_vector / d theta, shape (n_residuals, n_params): per-point reverse-mode
     gradients, vmapped over the points (each residual depends on one point only, so this costs
@@ -177,19 +250,27 @@ def jacobian_blocks(arch: Architecture, theta: Any, data: dict, ops: Ops, system
     columns = problem.targets.shape[1]
     params = arch.split(theta)
     blocks = []
+
+    def per_point(fn: Callable, t: Any, p: Any, s: Any) -> Any:
+        # each point's start state is mapped with it, when it has one
+        if s is None:
+            return ops.vmap(ops.jacrev(lambda ps, t, p: fn(ps, t, p, None)), (None, 0, 0))(params, t, p)
+        return ops.vmap(ops.jacrev(lambda ps, t, p, s: fn(ps, t, p, (s[0], s[1]))), (None, 0, 0, 0))(
+            params, t, p, s)
+
     if problem.t_u.size:
-        j_u = ops.vmap(ops.jacrev(lambda ps, t, p: w_u * data_terms(arch, ps, t, p, ops, columns)),
-                       (None, 0, 0))(params, data["t_u"], data["p_u"])
+        j_u = per_point(lambda ps, t, p, s: w_u * data_terms(arch, ps, t, p, ops, columns, s),
+                        data["t_u"], data["p_u"], data.get("start_u"))
         blocks.append(_flat_jacobian(j_u, ops))
     if problem.t_f.size:
-        j_f = ops.vmap(ops.jacrev(lambda ps, t, p: w_f * physics_terms(arch, ps, t, p, ops, system)),
-                       (None, 0, 0))(params, data["t_f"], data["p_f"])
+        j_f = per_point(lambda ps, t, p, s: w_f * physics_terms(arch, ps, t, p, ops, physics, s),
+                        data["t_f"], data["p_f"], data.get("start_f"))
         blocks.append(_flat_jacobian(j_f, ops))
     return blocks[0] if len(blocks) == 1 else ops.concat(blocks, 0)
 
 
 def _flat_jacobian(per_array: list[Any], ops: Ops) -> Any:
-    """Per-point Jacobians w.r.t. each array of the split list, (n, k) + array shape each, as one
-    (n k, n_params) matrix in the order of the flat vector."""
+    """Per-point Jacobians w.r.t. each array of the split list, (points, k) + array shape each, as one
+    (points k, n_params) matrix in the order of the flat vector."""
     n_rows = per_array[0].shape[0] * per_array[0].shape[1]
     return ops.concat([j.reshape(n_rows, -1) for j in per_array], 1)

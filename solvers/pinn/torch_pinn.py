@@ -14,22 +14,27 @@ the shared network to rounding error.
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import torch
 from torch import func as tfunc
 
-from systems.model import SwingSystem
 from solvers.pinn.common import Evaluator, PinnSolver, Trainer
-from solvers.pinn.network import Ops, jacobian_blocks, residual_vector
+from solvers.pinn.network import Ops, Physics, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem
 
 __all__ = ["OPS", "OPS_AUTOGRAD", "TorchPinn"]
 
+
+def _asarray(x: np.ndarray, like: torch.Tensor) -> torch.Tensor:
+    return torch.as_tensor(x, dtype=like.dtype)
+
+
 OPS = Ops(
-    tanh=torch.tanh, sin=torch.sin, exp=torch.exp, ones_like=torch.ones_like, stack=torch.stack,
-    concat=torch.cat, jvp=tfunc.jvp, vmap=tfunc.vmap, jacrev=tfunc.jacrev,
+    tanh=torch.tanh, sin=torch.sin, cos=torch.cos, exp=torch.exp, ones_like=torch.ones_like,
+    stack=torch.stack, concat=torch.cat, asarray=_asarray, jvp=tfunc.jvp, vmap=tfunc.vmap,
+    jacrev=tfunc.jacrev,
 )
 
 
@@ -38,8 +43,10 @@ def _as_variable(t: torch.Tensor) -> torch.Tensor:
 
 
 def _grad_t(y: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-    # d(sum y)/dt is dy/dt pointwise: each output depends on its own t only
-    return torch.autograd.grad(y.sum(), t, create_graph=True)[0]
+    """dy/dt of y (S + (n,)) for t (S): d(sum y_k)/dt is dy_k/dt pointwise (each output depends on its
+    own t only), one reverse pass per machine (n = 1: one, as for the SMIB)."""
+    columns = [torch.autograd.grad(y[..., k].sum(), t, create_graph=True)[0] for k in range(y.shape[-1])]
+    return torch.stack(columns, -1)
 
 
 def _autograd_d_dt(f, t):
@@ -81,77 +88,107 @@ def _tanh_(z: torch.Tensor) -> torch.Tensor:
 
 
 class _FastForward(Evaluator):
-    """delta (rad) and omega (rad/s) of a trained network on the grid P1 x t, (n_p, n_t) each.
+    """delta (rad) and omega (rad/s) of a trained network on the grid P1 x t, (n_p, n_t, n) each.
 
     Forward-mode differentiation by hand: for each hidden layer z = h W + b, z_t = h_t W,
     h = tanh(z), h_t = (1 - h^2) z_t; the input map (t, P1) -> [-1, 1]^2 is folded into the first
     layer, whose t-tangent is then the constant row W_t. Output heads as in
-    `network.network_outputs` (the hard initial condition with phi = 1 - exp(-t))."""
+    `network.network_outputs` (the hard initial condition with phi = 1 - exp(-t), from the
+    architecture's initial state or, in `grid` / `pairs`, each P1's or point's own)."""
 
     def __init__(self, arch: Architecture, dtype: torch.dtype) -> None:
         self.arch, self.dtype = arch, dtype
         self.npdtype = np.float64 if dtype == torch.float64 else np.float32
         self.tangent = arch.outputs == 1  # two-output networks give omega directly
+        self.n = arch.machines
+        self.delta0 = np.array(arch.delta0, self.npdtype)
+        self.omega0 = np.array(arch.omega0, self.npdtype)
 
-    def load(self, theta: np.ndarray) -> None:
+    def prepare(self, theta: np.ndarray) -> tuple:
         arch, dtype = self.arch, self.dtype
         layers = [(torch.as_tensor(np.asarray(w), dtype=dtype), torch.as_tensor(np.asarray(b), dtype=dtype))
                   for w, b in arch.layers(arch.split(np.asarray(theta, np.float64)))]
         ct, cp = 2.0 / (arch.t_hi - arch.t_lo), 2.0 / (arch.p_hi - arch.p_lo)
         w0, b0 = layers[0]
-        self.w_t = (w0[0] * ct).contiguous()
-        self.w_p = (w0[1] * cp).contiguous()
-        self.b0 = (b0 - w0[0] * (1.0 + arch.t_lo * ct) - w0[1] * (1.0 + arch.p_lo * cp)).contiguous()
-        self.hidden = [(b.contiguous(), w.contiguous()) for w, b in layers[1:-1]]
-        self.w_out, self.b_out = layers[-1][0].contiguous(), layers[-1][1].contiguous()
+        w_t = (w0[0] * ct).contiguous()
+        w_p = (w0[1] * cp).contiguous()
+        b_0 = (b0 - w0[0] * (1.0 + arch.t_lo * ct) - w0[1] * (1.0 + arch.p_lo * cp)).contiguous()
+        hidden = [(b.contiguous(), w.contiguous()) for w, b in layers[1:-1]]
+        return w_t, w_p, b_0, hidden, layers[-1][0].contiguous(), layers[-1][1].contiguous()
+
+    def load(self, theta: np.ndarray) -> None:
+        self.params = self.prepare(theta)
+        arch = self.arch
         self(np.array([0.5 * arch.t_hi]), np.array([0.5 * (arch.p_lo + arch.p_hi)]))  # warm-up
 
     def __call__(self, t_np: np.ndarray, p_np: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self._forward(t_np, p_np, paired=False)
+        return self._forward(self.params, t_np, p_np, False, None)
 
     def points(self, t_np: np.ndarray, p_np: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self._forward(t_np, p_np, paired=True)
+        return self._forward(self.params, t_np, p_np, True, None)
 
-    def _forward(self, t_np: np.ndarray, p_np: np.ndarray, paired: bool) -> tuple[np.ndarray, np.ndarray]:
-        """The grid (len(P1), len(t)), or with `paired` the points (t[i], P1[i]), shape (n,)."""
+    def grid(self, params: Any, t_np: np.ndarray, p_np: np.ndarray, start: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        return self._forward(params, t_np, p_np, False, start)
+
+    def pairs(self, params: Any, t_np: np.ndarray, p_np: np.ndarray, start: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        return self._forward(params, t_np, p_np, True, start)
+
+    def _forward(self, params: tuple, t_np: np.ndarray, p_np: np.ndarray, paired: bool,
+                 start: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The grid (len(P1), len(t), n), or with `paired` the points (t[i], P1[i]), (n_s, n); start
+        states `start` (len(P1), 2, n) (None: the architecture's)."""
         # No autograd context needed: no tensor here requires grad, so nothing is recorded.
+        w_t, w_p, b_0, hidden, w_out, b_out = params
+        n = self.n
         n_t, n_p = (1, p_np.shape[0]) if paired else (t_np.shape[0], p_np.shape[0])
         t_np, p_np = t_np.astype(self.npdtype, copy=False), p_np.astype(self.npdtype, copy=False)
         t = torch.from_numpy(t_np)
-        z = torch.addcmul(torch.addcmul(self.b0, torch.from_numpy(p_np).view(n_p, 1, 1), self.w_p),
-                          t.view(n_p if paired else 1, n_t, 1), self.w_t)
+        z = torch.addcmul(torch.addcmul(b_0, torch.from_numpy(p_np).view(n_p, 1, 1), w_p),
+                          t.view(n_p if paired else 1, n_t, 1), w_t)
         h = _tanh_(z.view(n_p * n_t, -1))
-        h_t = torch.addcmul(self.w_t, h * h, self.w_t, value=-1.0) if self.tangent else None
-        for b, w in self.hidden:
+        h_t = torch.addcmul(w_t, h * h, w_t, value=-1.0) if self.tangent else None
+        for b, w in hidden:
             z_t = torch.mm(h_t, w) if self.tangent else None
             h = _tanh_(torch.addmm(b, h, w))
             if self.tangent:
                 h_t = z_t.addcmul_(h * h, z_t, value=-1.0)
-        shape = (n_p,) if paired else (n_p, n_t)
-        out = torch.addmm(self.b_out, h, self.w_out).view(*shape, -1)
-        n1 = out[..., 0]
-        x = torch.mm(h_t, self.w_out).view(*shape) if self.tangent else out[..., 1]
+        shape = (n_p, n) if paired else (n_p, n_t, n)
+        out = torch.addmm(b_out, h, w_out)
+        if self.tangent:
+            n1, x = out.view(shape), torch.mm(h_t, w_out).view(shape)
+        else:  # views (splitting the rows keeps the column stride): no copies
+            n1, x = out[:, :n].view(shape), out[:, n:].view(shape)
         if not self.arch.hard_ic:
             return n1.numpy(), x.numpy()
         # delta = a0 + a1 N_1, omega = b0 + b1 N_1 + b2 X (X = dN_1/dt, or N_2 for two outputs),
-        # the t-only coefficients of the hard initial condition computed in numpy (cheaper per op)
-        a0, a1, b0, b1, b2 = (torch.from_numpy(c) for c in self._coefficients(t_np))
+        # the coefficients of the hard initial condition computed in numpy (cheaper per op)
+        if start is None:
+            delta0, omega0 = self.delta0, self.omega0
+        else:
+            start = start.astype(self.npdtype, copy=False)
+            delta0, omega0 = start[..., 0, :], start[..., 1, :]
+            if not paired:  # (n_p, 1, n): one start per P1, broadcast over t
+                delta0, omega0 = delta0[:, None], omega0[:, None]
+        a0, a1, b0, b1, b2 = (None if c is None else torch.from_numpy(c)
+                              for c in self._coefficients(t_np, delta0, omega0))
         delta = torch.addcmul(a0, a1, n1)
-        omega = torch.addcmul(torch.addcmul(b0, b1, n1), b2, x)
+        omega = torch.addcmul(b0 if b1 is None else torch.addcmul(b0, b1, n1), b2, x)
         return delta.numpy(), omega.numpy()
 
-    def _coefficients(self, t: np.ndarray) -> tuple[np.ndarray, ...]:
-        """(a0, a1, b0, b1, b2) of the hard-IC head at times t (s): phi = 1 - e, e = exp(-t);
-        one output: delta = delta0 + omega0 phi + phi^2 N, omega = omega0 e + 2 e phi N + phi^2 N_t;
-        two outputs: omega = omega0 + phi N_2."""
-        arch = self.arch
-        e = np.exp(-t)
+    def _coefficients(self, t: np.ndarray, delta0: np.ndarray, omega0: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(a0, a1, b0, b1, b2) of the hard-IC head at times t (s), broadcasting against the output
+        (..., n): phi = 1 - e, e = exp(-t), start state (delta0, omega0) (..., n); one output:
+        delta = delta0 + omega0 phi + phi^2 N, omega = omega0 e + 2 e phi N + phi^2 N_t;
+        two outputs: omega = omega0 + phi N_2 (b1 None: no N_1 term)."""
+        e = np.exp(-t)[:, None]
         phi = 1.0 - e
         phi2 = phi * phi
-        a0 = arch.delta0 + arch.omega0 * phi
+        a0 = delta0 + omega0 * phi
         if self.tangent:
-            return a0, phi2, arch.omega0 * e, 2.0 * e * phi, phi2
-        return a0, phi2, np.full_like(t, arch.omega0), np.zeros_like(t), phi
+            return a0, phi2, omega0 * e, 2.0 * e * phi, phi2
+        return a0, phi2, np.ascontiguousarray(omega0), None, phi
 
 
 class TorchPinn(PinnSolver):
@@ -163,10 +200,11 @@ class TorchPinn(PinnSolver):
         torch.set_num_threads(self.options["threads"])
         return ""
 
-    def _compile(self, arch: Architecture, problem: Problem, system: SwingSystem, dtype: str) -> Trainer:
+    def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
         tdtype = _DTYPES[dtype]
         data = {key: torch.as_tensor(getattr(problem, key), dtype=tdtype)
-                for key in ("t_u", "p_u", "targets", "t_f", "p_f")}
+                for key in ("t_u", "p_u", "targets", "t_f", "p_f", "start_u", "start_f")
+                if getattr(problem, key) is not None}
 
         def tensor(theta: np.ndarray) -> torch.Tensor:
             return torch.from_numpy(np.asarray(theta, np.float64)).to(tdtype)
@@ -176,15 +214,15 @@ class TorchPinn(PinnSolver):
 
         def residuals(theta: np.ndarray) -> np.ndarray:
             with torch.enable_grad():  # reverse-mode t-derivatives: 1.9 ms against 10.5 ms (2 x 16)
-                return numpy(residual_vector(arch, tensor(theta), data, OPS_AUTOGRAD, system, problem))
+                return numpy(residual_vector(arch, tensor(theta), data, OPS_AUTOGRAD, physics, problem))
 
         def jacobian(theta: np.ndarray) -> np.ndarray:
             with torch.no_grad():
-                return numpy(jacobian_blocks(arch, tensor(theta), data, OPS, system, problem))
+                return numpy(jacobian_blocks(arch, tensor(theta), data, OPS, physics, problem))
 
         def loss_and_grad(theta: np.ndarray) -> tuple[float, np.ndarray]:
             variable = tensor(theta).requires_grad_(True)
-            r = residual_vector(arch, variable, data, OPS_AUTOGRAD, system, problem)
+            r = residual_vector(arch, variable, data, OPS_AUTOGRAD, physics, problem)
             value = r @ r
             (grad,) = torch.autograd.grad(value, variable)
             return float(value.detach()), numpy(grad)
