@@ -106,7 +106,7 @@ class Settings:
 
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, seeds=(0,),
-    pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
+    pinn_options={"max_iterations": 150, "id_max_iterations": 150, "max_seconds": 60.0}, throughput_sizes=(1, 100),
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
