@@ -95,8 +95,10 @@ class Settings:
         minutes of training each: there only the configs of `network_pinn_configs` run, on the
         first seed; classical adapters run everything everywhere."""
         cls = SOLVERS.get(spec.solver)
-        if cls is None or not cls.trains or case.has_infinite_bus:
+        if cls is None or not cls.trains:
             return True
+        if case.has_infinite_bus:  # time-marching is for the multi-machine swings, not the SMIB
+            return spec.config != "marching"
         return spec.config in self.network_pinn_configs and spec.seed in (None, self.seeds[0])
 
     @property

@@ -209,10 +209,13 @@ CONFIGS: dict[str, dict[str, Any]] = {
     # 2 x 20 tanh network on 400 collocation points (denser at the window's ends and the P1 edges),
     # no data points (the initial condition is exact), Levenberg-Marquardt in float64, up to 2000
     # iterations a window within 300 s for the whole fit (the windows share it; the result depends
-    # on the machine's load). Measured (JAX, seed 0, 2 threads, 2 cores shared with ~1 other job,
-    # the full 300 s): COI rel. L2 2.5e-6 (wscc9), 1.0e-5 (kundur4) over 10 s. A 2 x 24 network
-    # reached 1.4e-5 on kundur4 in the same time (fewer LM iterations: the Gauss-Newton matrix
-    # costs P^2 per point); 200 or 300 points per window generalised worse between them.
+    # on the machine's load). Measured with this config (seed 0, the full 300 s, 2 cores shared with
+    # other jobs, load 1.2-4): COI rel. L2 over 10 s, JAX (threads 2) 2.8e-6 (wscc9, 16347 LM
+    # iterations) and 1.3e-5 (kundur4, 10614); torch (threads 1) 1.4e-5 and 4.2e-5 (5775 and 4601
+    # iterations). torch on 2 threads of a loaded machine stalls (one residual evaluation 0.87 s
+    # against 9.5 ms on 1 thread, load 3.4: OpenMP waits on a descheduled thread). A 2 x 24
+    # network reached 1.4e-5 on kundur4 with JAX in the same time (fewer LM iterations: the
+    # Gauss-Newton matrix costs P^2 per point); 200 or 300 points per window generalised worse.
     "marching": {
         "window": 0.5, "hidden_layers": 2, "width": 20, "outputs": 1, "hard_ic": True, "dtype": "float64",
         "n_u": 0, "n_f": 400, "optimizer": "lm", "max_iterations": 2000, "max_seconds": 300.0,
