@@ -36,6 +36,7 @@ from harness.store import atomic_write
 from harness.suites.accuracy import COI_DELTA
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
+from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
 from systems.reference import OFF_TRAINING
 
 __all__ = ["build_tables", "metadata", "write_report"]
@@ -274,14 +275,13 @@ TABLES = {
 }
 
 
-SMIB_FORWARD = ("smib-inference", "smib-identification")
-SMIB_IDENTIFICATION_CASE = "smib-identification"
+SMIB_FORWARD = tuple(case.name for case in SMIB_CASES)
 
 
 def _identification_case(name: str) -> str:
     """The case identification measures for forward case `name` (`harness.suites.identification_case`,
     by name: the report builds no case)."""
-    return SMIB_IDENTIFICATION_CASE if name in SMIB_FORWARD else name
+    return SMIB_IDENTIFICATION.name if name in SMIB_FORWARD else name
 
 
 def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, pd.DataFrame]]]:

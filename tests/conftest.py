@@ -6,10 +6,11 @@ import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "2")
 
+import numpy as np
 import pytest
 
 from solvers import SOLVERS, UNAVAILABLE, make_solver
-from systems.cases import SMIB_INFERENCE
+from systems.cases import SMIB_INFERENCE, Case
 
 ALL_SOLVERS = tuple(SOLVERS)
 
@@ -48,3 +49,22 @@ def fitted_solvers() -> dict:
             return solver
 
     return Lazy(cache)
+
+
+def max_rel(estimate: np.ndarray, truth) -> float:
+    """Largest relative error over the machines."""
+    return float(np.max(np.abs(np.asarray(estimate) / np.asarray(truth) - 1.0)))
+
+
+def three_machine_lossy() -> Case:
+    """Three machines on a lossy Kron-reduced network (G, B non-zero, no infinite bus), unequal
+    voltages and mechanical powers: exercises every term of the electrical power."""
+    G = np.array([[0.3, -0.1, -0.05], [-0.1, 0.25, -0.08], [-0.05, -0.08, 0.2]])
+    B = np.array([[-1.6, 0.9, 0.5], [0.9, -1.7, 0.7], [0.5, 0.7, -1.4]])
+    return Case(name="three-lossy", m=(0.3, 0.2, 0.25), d=(0.12, 0.08, 0.1), delta0=(0.1, 0.05, -0.02),
+                omega0=(0.1, 0.0, -0.05), p_m=(0.15, 0.1, 0.05), E=(1.05, 1.0, 1.02), G=G, B=B,
+                g_inf=(0.0,) * 3, b_inf=(0.0,) * 3, t_final=10.0, p1_min=0.1, p1_max=0.2,
+                m_box=((0.05, 1.0),) * 3, d_box=((0.02, 0.5),) * 3)
+
+
+THREE_MACHINES = three_machine_lossy()

@@ -127,7 +127,6 @@ def test_relative_angles_remove_the_common_drift_only_without_an_infinite_bus():
     rel = relative_angles(TWO_MACHINES, delta)
     np.testing.assert_allclose(rel[0], rel[1], atol=1e-15)
     np.testing.assert_allclose(center_of_inertia(TWO_MACHINES, delta[0]), (0.4 * 0.1 + 0.2 * 0.3) / 0.6)
-    assert relative_angles(SMIB_INFERENCE, delta[..., :1]) is not None
     np.testing.assert_array_equal(relative_angles(SMIB_INFERENCE, delta[..., :1]), delta[..., :1])
 
 

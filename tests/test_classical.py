@@ -5,33 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import THREE_MACHINES, max_rel
 
 from harness import metrics
 from solvers import make_solver
 from solvers.base import SolveError
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
 from systems.reference import SEED_DIR, load_seed_reference, reference
 
 CLASSICAL = ("scipy-rk45", "scipy-odeint", "casadi-cvodes")
 
 
-def _max_rel(estimate: np.ndarray, truth) -> float:
-    """Largest relative error over the machines."""
-    return float(np.max(np.abs(np.asarray(estimate) / np.asarray(truth) - 1.0)))
-
-
-def three_machine_lossy() -> Case:
-    """Three machines on a lossy Kron-reduced network (G, B non-zero, no infinite bus), unequal
-    voltages and mechanical powers: exercises every term of the electrical power."""
-    G = np.array([[0.3, -0.1, -0.05], [-0.1, 0.25, -0.08], [-0.05, -0.08, 0.2]])
-    B = np.array([[-1.6, 0.9, 0.5], [0.9, -1.7, 0.7], [0.5, 0.7, -1.4]])
-    return Case(name="three-lossy", m=(0.3, 0.2, 0.25), d=(0.12, 0.08, 0.1), delta0=(0.1, 0.05, -0.02),
-                omega0=(0.1, 0.0, -0.05), p_m=(0.15, 0.1, 0.05), E=(1.05, 1.0, 1.02), G=G, B=B,
-                g_inf=(0.0,) * 3, b_inf=(0.0,) * 3, t_final=10.0, p1_min=0.1, p1_max=0.2,
-                m_box=((0.05, 1.0),) * 3, d_box=((0.02, 0.5),) * 3)
-
-
-THREE = three_machine_lossy()
+THREE = THREE_MACHINES
 THREE_T, THREE_P1 = np.linspace(0.0, THREE.t_final, 51), np.linspace(THREE.p1_min, THREE.p1_max, 4)
 
 
@@ -111,8 +96,8 @@ def test_identify_recovers_m_and_d_from_tight_data(name):
     est = make_solver(name, SMIB_INFERENCE, "tight").identify(obs)
     assert est.success, est.message
     assert est.m.shape == est.d.shape == (1,)
-    assert _max_rel(est.m, 0.18) < 1e-4
-    assert _max_rel(est.d, 0.09) < 1e-4
+    assert max_rel(est.m, 0.18) < 1e-4
+    assert max_rel(est.d, 0.09) < 1e-4
     assert est.seconds > 0 and est.iterations > 0
 
 
@@ -128,8 +113,8 @@ def test_casadi_identifies_every_machine():
     est = make_solver("casadi-cvodes", THREE, "tight").identify(obs)
     assert est.success, est.message
     assert est.m.shape == est.d.shape == (3,) and est.m_ci95.shape == (3, 2)
-    assert _max_rel(est.m, THREE.m) < 1e-6
-    assert _max_rel(est.d, THREE.d) < 1e-6
+    assert max_rel(est.m, THREE.m) < 1e-6
+    assert max_rel(est.d, THREE.d) < 1e-6
 
 
 def test_casadi_sensitivities_equal_finite_differences():
@@ -170,8 +155,8 @@ def test_identify_at_ode45_tolerances(name):
     # the identification suite's noise-free draw of pair 1 (n_u = 100, seed 1000 + 1)
     obs = _grid_samples(SMIB_IDENTIFICATION.with_params(m, d), DEFAULT.n_u, seed=1001)
     est = make_solver(name, SMIB_IDENTIFICATION).identify(obs)
-    assert _max_rel(est.m, m) < 5e-3
-    assert _max_rel(est.d, d) < 5e-3
+    assert max_rel(est.m, m) < 5e-3
+    assert max_rel(est.d, d) < 5e-3
 
 
 # casadi: recovers tight data above, ~8 s here
@@ -183,8 +168,8 @@ def test_identify_on_the_papers_identification_data(name):
     i, j = rng.integers(0, P1.size, 100), rng.integers(0, t.size, 100)
     est = make_solver(name, SMIB_IDENTIFICATION, "tight").identify(Observations(t[j], P1[i], delta[i, j]))
     # the paper's ode45 data carry ~1e-3 rad of error: that, not the method, limits the estimate
-    assert _max_rel(est.m, 0.25) < 2e-3
-    assert _max_rel(est.d, 0.15) < 2e-3
+    assert max_rel(est.m, 0.25) < 2e-3
+    assert max_rel(est.d, 0.15) < 2e-3
 
 
 @pytest.mark.parametrize("name", CLASSICAL)
@@ -197,10 +182,10 @@ def test_identify_uses_omega_when_observed(name):
     delta, omega = np.repeat(ref_delta[0], 2, axis=0), np.repeat(ref_omega[0], 2, axis=0)  # (2, 1)
     solver = make_solver(name, case, "tight")
     est = solver.identify(Observations(t, P1, delta, omega))
-    assert _max_rel(est.m, case.m) < 1e-6
-    assert _max_rel(est.d, case.d) < 1e-6
+    assert max_rel(est.m, case.m) < 1e-6
+    assert max_rel(est.d, case.d) < 1e-6
     without = solver.identify(Observations(t, P1, delta))  # the premise: delta alone does not do it
-    assert max(_max_rel(without.m, case.m), _max_rel(without.d, case.d)) > 1e-2
+    assert max(max_rel(without.m, case.m), max_rel(without.d, case.d)) > 1e-2
 
 
 @pytest.mark.parametrize("name", CLASSICAL)

@@ -12,12 +12,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import require
+from conftest import THREE_MACHINES, max_rel, require
 
 from harness import metrics
 from solvers import make_solver
 from solvers.base import SolveError
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
 from systems.reference import reference
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -34,23 +34,7 @@ def _fitted(case=SMIB_INFERENCE, config="default", shapes=SMALL_SHAPES, **option
     return solver
 
 
-def _max_rel(estimate: np.ndarray, truth) -> float:
-    """Largest relative error over the machines."""
-    return float(np.max(np.abs(np.asarray(estimate) / np.asarray(truth) - 1.0)))
-
-
-def three_machine_lossy() -> Case:
-    """Three machines on a lossy Kron-reduced network (G, B non-zero, no infinite bus), unequal
-    voltages and mechanical powers: exercises every term of the electrical power."""
-    G = np.array([[0.3, -0.1, -0.05], [-0.1, 0.25, -0.08], [-0.05, -0.08, 0.2]])
-    B = np.array([[-1.6, 0.9, 0.5], [0.9, -1.7, 0.7], [0.5, 0.7, -1.4]])
-    return Case(name="three-lossy", m=(0.3, 0.2, 0.25), d=(0.12, 0.08, 0.1), delta0=(0.1, 0.05, -0.02),
-                omega0=(0.1, 0.0, -0.05), p_m=(0.15, 0.1, 0.05), E=(1.05, 1.0, 1.02), G=G, B=B,
-                g_inf=(0.0,) * 3, b_inf=(0.0,) * 3, t_final=10.0, p1_min=0.1, p1_max=0.2,
-                m_box=((0.05, 1.0),) * 3, d_box=((0.02, 0.5),) * 3)
-
-
-THREE = three_machine_lossy()
+THREE = THREE_MACHINES
 THREE_T, THREE_P1 = np.linspace(0.0, THREE.t_final, 64), np.linspace(THREE.p1_min, THREE.p1_max, 4)
 
 
@@ -169,8 +153,8 @@ def test_identify_recovers_m_and_d(tight):
     est = make_solver("diffrax", SMIB_IDENTIFICATION, "tight").identify(obs)
     assert est.success, est.message
     assert est.m.shape == est.d.shape == (1,) and est.m_ci95.shape == (1, 2)
-    assert _max_rel(est.m, 0.18) < 1e-6  # measured 1e-9
-    assert _max_rel(est.d, 0.09) < 1e-6  # measured 9e-10
+    assert max_rel(est.m, 0.18) < 1e-6  # measured 1e-9
+    assert max_rel(est.d, 0.09) < 1e-6  # measured 9e-10
 
 
 def test_identify_recovers_every_machine(three_obs):
@@ -180,8 +164,8 @@ def test_identify_recovers_every_machine(three_obs):
     est = make_solver("diffrax", THREE, "tight").identify(three_obs)
     assert est.success, est.message
     assert est.m.shape == est.d.shape == (3,)
-    assert _max_rel(est.m, THREE.m) < 1e-6
-    assert _max_rel(est.d, THREE.d) < 1e-6
+    assert max_rel(est.m, THREE.m) < 1e-6
+    assert max_rel(est.d, THREE.d) < 1e-6
 
 
 def test_machine_count_mismatch_names_obs_delta():

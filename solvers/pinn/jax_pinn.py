@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import os
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import jax
@@ -167,30 +168,21 @@ class _JitEvaluator(Evaluator):
         self.theta = self.prepare(theta)
 
     # __call__ and points are written out: a single-point query costs ~16 us, a helper call more
-    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _run(self, fn: Callable, params: Any, *arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega) of the jitted `fn(params, *arrays)`, arrays in the network's dtype."""
         with self.x64:
-            out = self.fn(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
+            out = fn(params, *(a.astype(self.npdtype, copy=False) for a in arrays))
         both = np.array(out)  # a writeable copy, like torch-pinn's results (np.asarray is read-only)
         return both[0], both[1]
 
+    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._run(self.fn, self.theta, t, P1)
+
     def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        with self.x64:
-            out = self.paired(self.theta, t.astype(self.npdtype, copy=False), P1.astype(self.npdtype, copy=False))
-        both = np.array(out)
-        return both[0], both[1]
+        return self._run(self.paired, self.theta, t, P1)
 
     def grid(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        dtype = self.npdtype
-        with self.x64:
-            out = self.fn_start(params, t.astype(dtype, copy=False), P1.astype(dtype, copy=False),
-                                start.astype(dtype, copy=False))
-        both = np.array(out)
-        return both[0], both[1]
+        return self._run(self.fn_start, params, t, P1, start)
 
     def pairs(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        dtype = self.npdtype
-        with self.x64:
-            out = self.paired_start(params, t.astype(dtype, copy=False), P1.astype(dtype, copy=False),
-                                    start.astype(dtype, copy=False))
-        both = np.array(out)
-        return both[0], both[1]
+        return self._run(self.paired_start, params, t, P1, start)
