@@ -15,6 +15,7 @@ import numpy as np
 
 __all__ = [
     "CASES",
+    "FAMILY_CASES",
     "IDENTIFICATION_PAIRS",
     "NETWORK_CASES",
     "SMIB_CASES",
@@ -265,28 +266,40 @@ SMIB_IDENTIFICATION = smib_case(
 SMIB_CASES = (SMIB_INFERENCE, SMIB_IDENTIFICATION)
 # Multi-machine cases are built from network data by `systems.grids` on first use (a power flow).
 NETWORK_CASES = ("wscc9", "kundur4", "ieee39")
+# The scaling family's larger networks (issue 13), built by `systems.family` on first use; its small
+# end, wscc9 and ieee39, is in NETWORK_CASES. In order of size (machines: 54, 69, 260, 510, 1445).
+FAMILY_CASES = ("case118", "case300", "case1354pegase", "case2869pegase", "case9241pegase")
 
 
 class _Cases(Mapping):
-    """name -> Case; the network cases are built (pandapower, a power flow) on first access."""
+    """name -> Case; the network cases are built (pandapower, a power flow) on first access, by
+    indexing: iterating and `in` give names only."""
 
     def __init__(self) -> None:
         self._built: dict[str, Case] = {case.name: case for case in SMIB_CASES}
 
     def __getitem__(self, name: str) -> Case:
         if name not in self._built:
-            if name not in NETWORK_CASES:
-                raise KeyError(name)
-            from systems import grids
+            if name in NETWORK_CASES:
+                from systems import grids
 
-            self._built[name] = getattr(grids, name)()
+                self._built[name] = getattr(grids, name)()
+            elif name in FAMILY_CASES:
+                from systems.family import family_case
+
+                self._built[name] = family_case(name)
+            else:
+                raise KeyError(name)
         return self._built[name]
 
+    def __contains__(self, name) -> bool:  # by name: never builds a case
+        return name in self._built or name in NETWORK_CASES or name in FAMILY_CASES
+
     def __iter__(self):
-        return iter([case.name for case in SMIB_CASES] + list(NETWORK_CASES))
+        return iter([case.name for case in SMIB_CASES] + list(NETWORK_CASES) + list(FAMILY_CASES))
 
     def __len__(self) -> int:
-        return len(SMIB_CASES) + len(NETWORK_CASES)
+        return len(SMIB_CASES) + len(NETWORK_CASES) + len(FAMILY_CASES)
 
 
 CASES: Mapping[str, Case] = _Cases()

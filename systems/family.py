@@ -1,0 +1,178 @@
+"""The scaling family (issue 13): real networks of growing size as classical N-machine swing systems.
+
+The small end is the paper's wscc9 (3 machines) and ieee39 (10), with published machine data
+(`systems.grids`). The rest are the MATPOWER cases that pandapower ships (`pandapower.networks`):
+case118 and case300 (the IEEE 118- and 300-bus systems, US, 60 Hz) and case1354pegase,
+case2869pegase, case9241pegase (parts of the European high-voltage grid from the PEGASE project,
+50 Hz: Josz, Fliscounakis, Maeght & Panciatici, "AC power flow data in MATPOWER and QCQP format:
+iTesla, RTE snapshots, and PEGASE", arXiv:1603.01533, 2016). They carry no dynamic data, so every
+machine gets the same typical data on its own rating (below), and each net becomes a `Case` by the
+code that builds wscc9 and ieee39: `network.classical_model`, `network.network_case` (horizon
+T_FINAL = 10 s, P1 = generator 1's operating P +- 30 %, damping d = 0.5 m).
+
+Machine data rule (for the cases without dynamic data):
+  * H = 4 s and x'd = 0.3 p.u., both on the machine's own MVA rating: mid-range typical values,
+    P. Kundur, "Power System Stability and Control" (1994), Table 3.2 (H: 2.5-6 s for 2-pole and
+    4-10 s for 4-pole thermal units, 2-4 s for hydro units) and Table 4.2 (x'd: 0.15-0.4 p.u. round
+    rotor, 0.2-0.5 p.u. salient pole). Kundur's two-area system (`grids.kundur4`) uses the same
+    x'd = 0.3 on rating.
+  * Rating S_k (MVA) = max(S_plate, |P + jQ| of the solved flow, RATING_FLOOR_MVA = 10 MVA), where
+    S_plate is the gen's sn_mva if pandapower has a positive one, else its |max_p_mw| (0 if none);
+    summed over the machines merged at one bus. None of the family's nets has an sn_mva (MATPOWER's
+    mBase is not a rating), and P_max, the unit's capability, is its size (it understates the MVA
+    rating by the power factor, ~0.85-0.95). The flow's |S| keeps every machine within its rating
+    (synchronous condensers have P_max = 0 and Q != 0); the floor keeps m_k > 0 for a unit with
+    neither. With H and x'd fixed on the rating, m_k ~ S_k and the machine's tie admittance ~ S_k:
+    a machine's local mode (~ sqrt(omega_s / (2 H x'd))) does not depend on S_k.
+  * Frequency: 60 Hz for the US cases (case118, case300), 50 Hz for the European PEGASE cases.
+  * Machines: every in-service gen and ext_grid (the slack), P <= 0 included (condensers, pumps);
+    several at one bus are merged into one (`merge_machines`). Generator 1 (machine 0, whose
+    mechanical power steps to P1) = the machine with the largest operating P; the others follow in
+    pandapower bus order.
+  * Transformer phase shifts are set to 0 (the PEGASE cases have a few, of < 1 deg): a phase
+    shifter makes Ybus, and so G and B, unsymmetric, which `Case` does not allow. The power flow is
+    solved after that, so the equilibrium is exact for the network modelled.
+Power flow: pandapower's Newton-Raphson at 1e-10 MVA (as `grids`), numba off (measured: no faster
+at 9241 buses, 0.4 s, and it compiles for seconds). Nets of 1000 buses or more are reduced with
+sparse matrices (`network.kron_reduce_sparse`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import TYPE_CHECKING
+
+from systems.cases import FAMILY_CASES, Case
+from systems.network import ClassicalModel, classical_model, network_case
+
+if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
+    from pandapower.auxiliary import pandapowerNet
+
+__all__ = ["FAMILY", "F_HZ", "H_S", "RATING_FLOOR_MVA", "XD_PRIME", "family_case", "family_model",
+           "family_size", "merge_machines"]
+
+# The family, in order of size (machines: 3, 10, 54, 69, 260, 510, 1445).
+FAMILY: tuple[str, ...] = ("wscc9", "ieee39", *FAMILY_CASES)
+# The machine data rule (module docstring): s and p.u. on the machine's rating; the rating floor, MVA.
+H_S = 4.0
+XD_PRIME = 0.3
+RATING_FLOOR_MVA = 10.0
+# System frequency (Hz) of each case without dynamic data: US 60 Hz, European (PEGASE) 50 Hz.
+F_HZ = {"case118": 60.0, "case300": 60.0, "case1354pegase": 50.0, "case2869pegase": 50.0,
+        "case9241pegase": 50.0}
+_ORIGIN = {"case118": "IEEE 118-bus system", "case300": "IEEE 300-bus system",
+           **{name: "PEGASE, Josz et al. arXiv:1603.01533" for name in FAMILY_CASES if "pegase" in name}}
+# pandapower.networks loader of each family member (wscc9 and ieee39 are MATPOWER case9 and case39).
+_LOADER = {"wscc9": "case9", "ieee39": "case39", **{name: name for name in FAMILY_CASES}}
+# Elements that classical_model has no model for: an in-service one is refused.
+_UNSUPPORTED = ("ward", "xward", "storage", "dcline", "impedance", "svc", "tcsc", "ssc", "vsc", "motor",
+                "asymmetric_load", "asymmetric_sgen")
+
+
+def _check_name(name) -> str:
+    if name not in FAMILY:
+        raise ValueError(f"name must be one of {', '.join(FAMILY)}; got {name!r}")
+    return name
+
+
+def _load(name: str) -> pandapowerNet:
+    import pandapower.networks as pn
+
+    return getattr(pn, _LOADER[name])()
+
+
+def _machines(net: pandapowerNet) -> dict[int, list[tuple[str, int]]]:
+    """bus -> its in-service ("ext_grid" | "gen", index) elements, ext_grids first."""
+    found: dict[int, list[tuple[str, int]]] = {}
+    for table in ("ext_grid", "gen"):
+        frame = net[table]
+        on = frame.in_service.values.astype(bool)
+        for idx, bus in zip(frame.index[on], frame.bus.values[on]):
+            found.setdefault(int(bus), []).append((table, int(idx)))
+    return found
+
+
+def family_size(name: str) -> tuple[int, int]:
+    """(buses, machines) of family case `name`, read from its net without a power flow (~1 s):
+    in-service buses, and buses with an in-service gen or ext_grid."""
+    net = _load(_check_name(name))
+    return int(net.bus.in_service.sum()), len(_machines(net))
+
+
+def _nameplate(net: pandapowerNet, table: str, idx: int) -> float:
+    """sn_mva (MVA) of element `idx` of `table` if positive, else |max_p_mw| (MW), else 0."""
+    for column in ("sn_mva", "max_p_mw"):
+        value = float(net[table].at[idx, column]) if column in net[table] else math.nan
+        if math.isfinite(value) and (value > 0 or column == "max_p_mw"):
+            return abs(value)
+    return 0.0
+
+
+def merge_machines(net: pandapowerNet) -> dict[int, float]:
+    """One machine per bus, in place, before the power flow. At a bus with several in-service gen
+    and ext_grid elements the first ext_grid (else the first gen) stays; a kept gen takes the
+    others' P set points (a kept ext_grid, the slack, takes them up in the flow), and the others go
+    out of service: the flow then gives the kept element the bus's summed P and Q, as before.
+    Returns {bus: S_plate}, MVA: the sum of `_nameplate` over each machine bus's elements."""
+    plate = {}
+    for bus, elements in _machines(net).items():
+        plate[bus] = sum(_nameplate(net, table, idx) for table, idx in elements)
+        (kept_table, kept), others = elements[0], elements[1:]
+        for table, idx in others:
+            if kept_table == "gen":
+                net.gen.at[kept, "p_mw"] += net.gen.at[idx, "p_mw"]
+            net[table].at[idx, "in_service"] = False
+    return plate
+
+
+def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
+    """The classical model of an unsolved pandapower `net` by the module's machine data rule.
+
+    Changes `net` in place: transformer phase shifts set to 0, machines merged per bus
+    (`merge_machines`), the power flow solved. Machine 0 = the largest operating P, then bus order.
+    f_hz: the system frequency (Hz). Raises ValueError naming
+    `net` if it has an in-service element classical_model does not model (ward, storage, dcline, ...).
+    """
+    from systems.grids import _solve
+
+    present = [t for t in _UNSUPPORTED if t in net and len(net[t]) and net[t].in_service.astype(bool).any()]
+    if present:
+        raise ValueError(f"net has in-service {', '.join(present)} element(s), which the classical "
+                         "model does not model")
+    if len(net.trafo):
+        net.trafo["shift_degree"] = 0.0
+    plate = merge_machines(net)
+    _solve(net)
+    rows = [(bus, *elements[0]) for bus, elements in sorted(_machines(net).items())]
+    p = [float(net[f"res_{t}"].at[i, "p_mw"]) for _, t, i in rows]
+    s = [abs(complex(net[f"res_{t}"].at[i, "p_mw"], net[f"res_{t}"].at[i, "q_mvar"])) for _, t, i in rows]
+    first = max(range(len(rows)), key=p.__getitem__)  # the first of equals in bus order
+    order = [first] + [k for k in range(len(rows)) if k != first]
+    rating = [max(plate[rows[k][0]], s[k], RATING_FLOOR_MVA) for k in order]
+    return classical_model(net, [rows[k][0] for k in order], H=H_S, xd_prime=XD_PRIME, machine_mva=rating,
+                           f_hz=f_hz)
+
+
+@functools.cache
+def family_case(name: str) -> Case:
+    """The `Case` of family member `name` (FAMILY), built once per process: wscc9 and ieee39 are
+    `grids.wscc9()` and `grids.ieee39()`; the others follow the module's machine data rule."""
+    _check_name(name)
+    if name in ("wscc9", "ieee39"):
+        from systems import grids
+
+        return getattr(grids, name)()
+    from systems.grids import T_FINAL
+
+    net = _load(name)
+    shifts = net.trafo.shift_degree.values[net.trafo.shift_degree.values != 0] if len(net.trafo) else []
+    model = family_model(net, F_HZ[name])
+    shifted = (f"; phase shifts of {len(shifts)} transformers (|shift| <= {max(abs(shifts)):.2g} deg) set "
+               "to 0" if len(shifts) else "")
+    return network_case(name, model, t_final=T_FINAL, source=(
+        f"network: MATPOWER {name} ({_ORIGIN[name]}) via pandapower.networks.{name}{shifted}; machines: "
+        f"every gen and ext_grid, one per bus, H = {H_S:g} s, x'd = {XD_PRIME:g} p.u. on rating max(sn_mva "
+        f"or P_max, |S_flow|, {RATING_FLOOR_MVA:g} MVA) (typical values: Kundur, Power System Stability "
+        f"and Control, Tables 3.2, 4.2); {F_HZ[name]:g} Hz; generator 1 = the largest P; damping "
+        "d = 0.5 m (ours)"))
