@@ -9,7 +9,7 @@ from pathlib import Path
 
 from harness import sweep  # imports only the standard library until a sweep runs
 
-SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification")
+SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification", "scaling")
 
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
@@ -33,7 +33,10 @@ def _parser() -> argparse.ArgumentParser:
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help=f"suites to run (default: all): {', '.join(SUITE_NAMES)}")
+                     help=f"suites to run (default: all but scaling): {', '.join(SUITE_NAMES)}; scaling "
+                          "measures cost, memory and accuracy against the number of machines, each unit in a "
+                          "process of its own under --unit-seconds and --unit-memory, on the scaling cases "
+                          "(wscc9 ... case2869pegase) unless --case names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help="adapters to run (default: every registered one)")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
@@ -58,6 +61,18 @@ def _parser() -> argparse.ArgumentParser:
                      help="also replace the generated tables section of this README")
     run.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
                      help="progress bar on stderr (auto: only on a terminal)")
+    run.add_argument("--unit-seconds", type=float, default=None, metavar="S",
+                     help="run each unit (an adapter on a case: build, fit, suites) in a fresh process and "
+                          "stop it after S seconds with a 'skipped: out of time' row (scaling: 1800)")
+    run.add_argument("--unit-memory", type=float, default=None, metavar="MIB",
+                     help="likewise, stop a unit whose resident memory exceeds MIB MiB (scaling: 16384)")
+    where = run.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) "
+                            "instead of in this process; its workers need swingbench installed and "
+                            "--nthreads equal to --threads")
+    where.add_argument("--dask-local", action="store_true",
+                       help="run the units on a local dask.distributed cluster of one worker process")
 
     report = sub.add_parser("report", help="re-render tables from a results folder without running",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables.")
@@ -83,11 +98,13 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
+    from harness import executors
+    from harness.isolation import Limits
     from harness.report import metadata, write_report
     from harness.runner import execute, interrupted_message, open_results, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs
     from harness.store import atomic_write
-    from harness.suites import SUITES
+    from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
     from systems.cases import CASES
 
@@ -96,10 +113,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     _known("solver(s)", args.solver, list(SOLVERS))
     configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
     _known("config(s)", args.config, configs)
-    suites = args.suite or list(SUITES)
+    suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
-    cases = [CASES[name] for name in args.case or settings.cases]
+    limits = settings.scaling_unit_limits if "scaling" in suites else None
+    if args.unit_seconds is not None or args.unit_memory is not None:
+        if any(x is not None and not x > 0 for x in (args.unit_seconds, args.unit_memory)):
+            raise SystemExit("swingbench run: --unit-seconds and --unit-memory must be > 0")
+        limits = Limits(args.unit_seconds if args.unit_seconds is not None else limits and limits.seconds,
+                        args.unit_memory if args.unit_memory is not None else limits and limits.rss_mb)
+    settings = replace(settings, unit_limits=limits)
+    cases = [CASES[name] for name in args.case or (settings.scaling_cases if suites == ["scaling"] else settings.cases)]
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise SystemExit("swingbench run: no solver/config combination selected")
@@ -114,8 +138,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
-        execute(plan(specs, cases, [SUITES[name] for name in suites], settings), settings, store, progress=progress,
-                done=contents.completed if contents else None)  # open_results prepared the resume
+        with executors.choose(args.scheduler, args.dask_local, workers=1, threads=args.threads) as executor:
+            execute(plan(specs, cases, [SUITES[name] for name in suites], settings), settings, store, executor,
+                    progress=progress, done=contents.completed if contents else None)  # resume prepared
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130

@@ -17,7 +17,7 @@ from harness.runner import Unit, run_unit, run_unit_in_worker
 from harness.runs import Settings
 from harness.timing import THREAD_ENV
 
-__all__ = ["dask", "dask_client", "inline", "joblib"]
+__all__ = ["choose", "dask", "dask_client", "inline", "joblib"]
 
 Jobs = list[tuple[Unit, tuple[str, ...]]]
 
@@ -116,3 +116,15 @@ def dask_client(scheduler: str | None, workers: int, threads: int = 1) -> Iterat
     with LocalCluster(n_workers=workers, threads_per_worker=threads, processes=True, dashboard_address=None,
                       env=env) as cluster, Client(cluster) as client:
         yield client
+
+
+@contextlib.contextmanager
+def choose(scheduler: str | None, dask_local: bool, workers: int, threads: int = 1,
+           local: Any = None) -> Iterator[Any]:
+    """The executor the command line names: the Dask scheduler at `scheduler`, a LocalCluster of
+    `workers` processes (`dask_local`), or else `local` (None: `inline`, this process)."""
+    if scheduler is None and not dask_local:
+        yield local or inline
+        return
+    with dask_client(scheduler, workers, threads) as client:
+        yield dask(client)

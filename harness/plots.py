@@ -16,7 +16,7 @@ from matplotlib.lines import Line2D
 from harness.analysis import identification_data, label, ok, trained
 from systems.cases import CASES, standard_grid
 
-__all__ = ["make_plots"]
+__all__ = ["PLOTS", "SCALING_PLOTS", "make_plots"]
 
 
 def _palette(labels) -> dict:
@@ -184,18 +184,72 @@ def identification_plot(frames: dict):
     return fig
 
 
+def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax) -> None:
+    """`column` against N, one line per adapter spec, log-log; the fitted slope in the legend."""
+    from harness.scaling_tables import log_log_slope
+
+    colours = _palette(frame["label"])
+    for name, g in frame.groupby("label", sort=False):
+        g = g[np.isfinite(g[column].astype(float)) & (g[column].astype(float) > 0)]
+        if g.empty:
+            continue
+        coupled = g["N"].to_numpy() >= 2  # as `exponents`: the SMIB's N = 1 has no coupling to scale
+        slope, _ = log_log_slope(g["N"].to_numpy(float)[coupled], g[column].to_numpy(float)[coupled])
+        tag = "" if np.isnan(slope) else f" (N^{slope:.2f})"
+        ax.plot(g["N"], g[column], "o-" if not g["trains"].iloc[0] else "s--", color=colours[name],
+                label=f"{name}{tag}", ms=4)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("machines N")
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def scaling_cost_plot(frames: dict):
+    """Preparation, grid query, single point and peak memory against N (log-log), every adapter."""
+    frame = frames.get("scaling_frame")
+    if frame is None or frame.empty:
+        return None
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    for ax, (column, title) in zip(axes.ravel(), (("prep_s", "preparation (s)"), ("grid_s", "grid query (s)"),
+                                                   ("point_s", "single point (s)"), ("peak_rss_mib", "peak memory (MiB)"))):
+        _log_log(frame, column, title, ax)
+    handles, labels = axes[0, 1].get_legend_handles_labels()
+    fig.legend(handles, [lab.split(" (N^")[0] for lab in labels], fontsize=7, loc="upper left",
+               bbox_to_anchor=(1.0, 0.95))
+    fig.suptitle("Cost against the number of machines (fitted exponents in the scaling tables)")
+    fig.tight_layout()
+    return fig
+
+
+def scaling_accuracy_plot(frames: dict):
+    """Rel. L2 of the angles (COI-relative without an infinite bus) against N, every adapter."""
+    frame = frames.get("scaling_frame")
+    if frame is None or frame.empty:
+        return None
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    _log_log(frame.assign(label=frame["label"]), "rel_l2", "rel. L2 of the angles", ax)
+    _legend_beside(ax)
+    return fig
+
+
 PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1": latency_t1_plot,
          "crossover": crossover_plot, "identification": identification_plot}
 
 
-def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "") -> list[str]:
-    """Write every plot that has data as `<name><suffix>.png` and `.pdf`; return the file stems."""
+SCALING_PLOTS = {"scaling_cost": scaling_cost_plot, "scaling_accuracy": scaling_accuracy_plot}
+
+
+def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "", names: dict | None = None,
+               ) -> list[str]:
+    """Write every plot of `names` (default `PLOTS`) that has data as `<name><suffix>.png` and `.pdf`;
+    return the file stems."""
     import io
 
     from harness.store import atomic_write
 
     written = []
-    for name, build in PLOTS.items():
+    for name, build in (PLOTS if names is None else names).items():
         fig = build(frames)
         if fig is None:
             continue

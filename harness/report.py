@@ -32,6 +32,8 @@ from harness.analysis import (
     trained,
 )
 from harness.paper import paper_table
+from harness.plots import SCALING_PLOTS
+from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import atomic_write
 from harness.suites.accuracy import COI_DELTA
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
@@ -39,7 +41,7 @@ from harness.versions import library_versions
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
 from systems.reference import OFF_TRAINING
 
-__all__ = ["build_tables", "metadata", "write_report"]
+__all__ = ["build_tables", "metadata", "scaling_markdown", "write_report"]
 
 LIBRARIES = ("numpy", "scipy", "pandas", "casadi", "torch", "jax", "jaxlib", "optax", "numba", "diffrax")
 TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref")
@@ -292,7 +294,7 @@ def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, 
     it there (absolute angles drift together; their error says little about the swings)."""
     names: list[str] = []
     for suite, df in frames.items():
-        if suite != "identification" and "case" in df:
+        if suite not in ("identification", "scaling", "fit") and "case" in df:
             names += [n for n in df["case"].dropna().unique() if n not in names]
     ident = frames.get("identification")
     if ident is not None and "case" in ident:
@@ -302,6 +304,8 @@ def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, 
     for name in names:
         own = {}
         for suite, df in frames.items():
+            if suite == "scaling":  # across cases: its own section (`scaling_markdown`)
+                continue
             case = _identification_case(name) if suite == "identification" else name
             part = df[df["case"] == case].dropna(axis=1, how="all").reset_index(drop=True) if "case" in df else df
             if suite == "work_precision" and "rel_l2_delta_coi" in part:
@@ -353,11 +357,27 @@ def _verdict(frames: dict, level: str = "###") -> str:
     return f"{level} Verdict of this case\n\n" + "".join(f"- {line}\n" for line in lines) + "\n" if lines else ""
 
 
+def scaling_markdown(frames: dict, level: str = "###") -> str:
+    """The scaling section ("" when the run has no scaling rows): cost, memory and accuracy per
+    adapter and N, fitted exponents, break-even trajectories of each PINN, units that did not fit."""
+    frame = scaling_frame(frames)
+    tables = [("Cost, memory and accuracy against the number of machines N", scaling_table(frame)),
+              ("Fitted exponents b of cost ~ N^b (least squares in log-log, N >= 2)", exponents(frame)),
+              ("Break-even: trajectories after which a PINN's preparation pays off", break_even_by_n(frame)),
+              ("Units that did not run to the end", status_by_n(frames))]
+    tables = [(title, table) for title, table in tables if not table.empty]
+    if not tables:
+        return ""
+    return (f"\n{level[:-1]} Scaling\n\n"
+            + "\n".join(f"{level} {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables))
+
+
 def headline_markdown(rows: list[dict], meta: dict) -> str:
     """The headline tables of a run (for the project README), in Markdown, case by case."""
-    sections = case_sections(suite_frames(rows))
-    return _header(meta) + "\n".join(_section_markdown(name, frames, build_tables(frames), HEADLINE, "####")
-                                      for name, frames in sections)
+    frames = suite_frames(rows)
+    sections = case_sections(frames)
+    return _header(meta) + "\n".join(_section_markdown(name, own, build_tables(own), HEADLINE, "####")
+                                      for name, own in sections) + scaling_markdown(frames, "####")
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
@@ -375,6 +395,7 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     if not steps.empty:
         atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
     markdown = _header(meta) + "\n".join(_section_markdown(name, own, tables) for name, own, tables in sections)
+    markdown += scaling_markdown(frames)
     latex = "\n".join(f"% {name}: {title}\n{table.to_latex(index=False, escape=True)}"
                       for name, _, tables in sections for title, table in tables.values())
     atomic_write(out_dir / "tables.md", markdown)
@@ -386,6 +407,7 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
 
         for name, own, _ in sections:
             figures += make_plots(own, out_dir, suffix=f"-{name}" if len(sections) > 1 else "")
+        figures += make_plots({"scaling_frame": scaling_frame(frames)}, out_dir, names=SCALING_PLOTS)
     atomic_write(out_dir / "README.md", _results_readme(meta, frames, markdown, figures))
     return markdown
 

@@ -18,10 +18,11 @@ import sys
 import tempfile
 import traceback
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from harness.isolation import OverLimit, call_isolated
 from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key
@@ -90,7 +91,7 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settin
     """The units of `swingbench run` in run order: the forward cases first, then suites with a case
     of their own (`Suite.own_case`, e.g. the SMIB's identification case), each case once; suites that
     are not measured for every seed run on the first seed only; with `settings`, only the specs
-    it `measures` on each case."""
+    it `measures` on each case, with the training budget it gives that case (`Settings.budgeted`)."""
     targets: dict[Case, list[Suite]] = {case: [s for s in suites if s.own_case is None] for case in cases}
     for suite in suites:
         if suite.own_case is not None:
@@ -107,7 +108,7 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settin
             chosen = [s.name for s in group if (s.every_seed or _first_seed(spec, specs))
                       and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec))]
             if chosen:
-                units.append(Unit(case, spec, tuple(chosen)))
+                units.append(Unit(case, spec if settings is None else settings.budgeted(spec, case), tuple(chosen)))
     return units
 
 
@@ -134,10 +135,35 @@ def _failure(exc: BaseException) -> str:
 
 
 def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tuple[str, list[dict]]]:
-    """Measure the units of work `todo` (names from `unit.works()`) of `unit` in this process and
-    yield (work, rows) as each completes. The adapter is built and, when a suite needs it, fitted or
-    loaded from the model cache even if its fit is already recorded. Never raises for a failing
-    adapter: its units of work get one 'failed: ...' row each (a missing dependency 'skipped: ...')."""
+    """Measure the units of work `todo` (names from `unit.works()`) of `unit` and yield (work, rows)
+    as each completes. The adapter is built and, when a suite needs it, fitted or loaded from the
+    model cache even if its fit is already recorded. Never raises for a failing adapter: its units
+    of work get one 'failed: ...' row each (a missing dependency 'skipped: ...').
+
+    In this process, unless `settings.unit_limits` is set: then the whole unit runs in a fresh
+    process under those limits (`harness.isolation`), every row gains `peak_rss_mib` (the peak
+    resident memory of that process: imports, build, training, queries), and a unit that runs past
+    a limit is killed and gets one 'skipped: out of time: ...' / 'skipped: out of memory: ...' row
+    per unit of work."""
+    if settings.unit_limits is None:
+        yield from _run_unit_here(unit, settings, todo)
+        return
+    todo = tuple(todo)
+    try:
+        parts, peak_mib = call_isolated(run_unit_in_worker, unit, replace(settings, unit_limits=None), todo,
+                                        limits=settings.unit_limits)
+    except (OverLimit, RuntimeError) as exc:
+        status = f"skipped: {exc}" if isinstance(exc, OverLimit) else _failure(exc)
+        print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
+        base = {**unit.base(settings), "worker": f"{socket.gethostname()}:{os.getpid()}"}
+        for work in (w for w in unit.works() if w in todo):
+            yield work, [{"suite": work, **base, "status": status}]
+        return
+    for work, rows in parts:
+        yield work, [{**row, "peak_rss_mib": peak_mib} for row in rows]
+
+
+def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tuple[str, list[dict]]]:
     todo = [w for w in unit.works() if w in set(todo)]
     base = {**unit.base(settings), "worker": f"{socket.gethostname()}:{os.getpid()}"}
     cls = solver_class(unit.spec.solver)

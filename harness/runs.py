@@ -4,10 +4,11 @@ the settings of a run (budgets, seeds, pairs, noise levels)."""
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from harness.isolation import Limits
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB_IDENTIFICATION, Case
@@ -53,6 +54,13 @@ class SolverSpec:
 PAPER_PAIR: tuple[float, float] = (SMIB_IDENTIFICATION.m[0], SMIB_IDENTIFICATION.d[0])
 
 
+# The scaling suite's cases, by number of machines: the published systems, then pandapower's
+# MATPOWER / PGLib cases with machine data by rule (systems.family).
+SCALING_CASES = ("wscc9", "ieee39", "case118", "case300", "case1354pegase", "case2869pegase")
+# What one unit of the scaling suite (build, fit, queries of one adapter on one case) may take.
+SCALING_UNIT_LIMITS = Limits(seconds=1800.0, rss_mb=16384.0)
+
+
 @dataclass(frozen=True)
 class Settings:
     """Knobs of a run. Timings are medians of warm repeats within `latency_budget_s` seconds per
@@ -66,7 +74,12 @@ class Settings:
     line names none; on the multi-machine ones, PINNs run only `network_pinn_configs` (`measures`),
     and identification runs only `network_identify_configs` (at ode45's tolerances a classical
     identification there is both slow, minutes with 2n unknowns, and biased by the integration
-    error: 10-14 % on wscc9, measured)."""
+    error: 10-14 % on wscc9, measured) on `network_identify_cases` at `network_noise_levels` (with
+    1 % noise scipy-rk45 took 520 s on wscc9, measured); `network_pinn_seconds` gives a case's PINN fits a wall-clock
+    budget (`budgeted`). `unit_limits` (None: none) runs each unit in a fresh process under a
+    wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
+    `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
+    of `scaling_n_p1` x `scaling_n_t`."""
 
     name: str = "default"
     threads: int = 2
@@ -89,6 +102,14 @@ class Settings:
     cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES)
     network_pinn_configs: tuple[str, ...] = ("marching",)
     network_identify_configs: tuple[str, ...] = ("tight", "marching")
+    network_pinn_seconds: dict[str, float] = field(default_factory=dict)
+    network_noise_levels: tuple[float, ...] = (0.0,)
+    network_identify_cases: tuple[str, ...] = NETWORK_CASES
+    unit_limits: Limits | None = None
+    scaling_cases: tuple[str, ...] = SCALING_CASES
+    scaling_n_p1: int = 4
+    scaling_n_t: int = 101
+    scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
 
     def measures(self, spec: SolverSpec, case: Case) -> bool:
         """Whether a run measures `spec` on `case`. Multi-machine cases (no infinite bus) cost a PINN
@@ -101,6 +122,17 @@ class Settings:
             return spec.config != "marching"
         return spec.config in self.network_pinn_configs and spec.seed in (None, self.seeds[0])
 
+    def budgeted(self, spec: SolverSpec, case: Case) -> SolverSpec:
+        """`spec` with the wall-clock training budget `network_pinn_seconds` gives `case` (options
+        `max_seconds` and `id_max_seconds`, so the budget shows in the row's variant), for adapters
+        that train and specs that set no `max_seconds` of their own; otherwise `spec` itself."""
+        seconds = self.network_pinn_seconds.get(case.name)
+        cls = SOLVERS.get(spec.solver)
+        if seconds is None or cls is None or not cls.trains or "max_seconds" in dict(spec.options):
+            return spec
+        budget = [(key, float(seconds)) for key in ("max_seconds", "id_max_seconds") if key in cls.OPTIONS]
+        return replace(spec, options=tuple(sorted((*spec.options, *budget))))
+
     @property
     def quick(self) -> bool:
         return self.name == "quick"
@@ -112,16 +144,23 @@ QUICK = Settings(
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
-# make bench: every suite within ~40 minutes on 2 cores. Three seeds of each configuration of the
-# paper and of `default`, one of the extra `two-outputs`; identification on the paper's own case
-# (m = 0.25, d = 0.15, also from the paper's ode45 data) and one of the 10 pairs, PINN identification
-# budgets of each configuration (iterations), not for the two-output networks (the paper identifies with one
-# output only);
-# --full runs everything: every seed, the paper's case and the 10 pairs, both noise levels.
+# make bench: every suite on the SMIB and the three multi-machine cases within ~60 minutes on 2
+# cores. SMIB: two seeds of each configuration of the paper and of `default`, one of the two-output
+# ones; identification on the paper's own case (m = 0.25, d = 0.15, also from the paper's ode45
+# data) and one of the 10 pairs, PINN identification budgets of each configuration (iterations), not
+# for the two-output networks (the paper identifies with one output only). Multi-machine cases: PINNs
+# (`marching`) train within the stated wall-clock budget per case (the issue's 5- and 10-minute
+# targets are measured apart, see the README); identification noise-free, on wscc9 only (each
+# classical adapter takes 1-80 s there; on kundur4 and ieee39 minutes more per adapter).
+# --full runs everything: every seed, the paper's case and the 10 pairs, both noise levels, the
+# identification of every multi-machine case, PINNs within their configs' own budgets.
 DEFAULT = Settings(
-    first_seed_only=("two-outputs",),
+    seeds=(0, 1),
+    first_seed_only=("two-outputs", "paper-two-outputs"),
     pairs=(PAPER_PAIR, IDENTIFICATION_PAIRS[4]),
     skip_identify_configs=("paper-two-outputs", "two-outputs"),
+    network_pinn_seconds={"wscc9": 90.0, "kundur4": 90.0, "ieee39": 180.0},
+    network_identify_cases=("wscc9",),
 )
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0)
 

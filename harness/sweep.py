@@ -48,7 +48,6 @@ This module imports only the standard library at the top: the CLI imports it to 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import itertools
 import json
 import math
@@ -412,11 +411,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
           + (f"; {len(done)} unit(s) of work already recorded" if done else ""), file=sys.stderr)
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
-        with contextlib.ExitStack() as stack:
-            if args.scheduler is not None or args.dask_local:
-                run = executors.dask(stack.enter_context(executors.dask_client(args.scheduler, args.workers)))
-            else:
-                run = executors.joblib(args.workers)
+        with executors.choose(args.scheduler, args.dask_local, args.workers,
+                              local=executors.joblib(args.workers)) as run:
             counts = execute(units, settings, store, run, progress=progress, done=done)
     except KeyboardInterrupt:
         print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)

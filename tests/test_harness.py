@@ -352,15 +352,33 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
     from harness.runner import plan
     from harness.runs import default_specs
-    from harness.suites import SUITES
+    from harness.suites import DEFAULT_SUITES, SUITES
     from systems.cases import SMIB_INFERENCE as forward
 
     specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
     units = {(unit.case.name, unit.spec.variant): list(unit.suites)
-             for unit in plan(specs, [forward], list(SUITES.values()))}
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES])}
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
     assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]
+
+
+def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
+    from harness.runner import plan
+    from harness.runs import default_specs
+    from harness.suites import SUITES
+    from systems.cases import CASES
+    from systems.cases import SMIB_INFERENCE as forward
+
+    settings = replace(DEFAULT, seeds=(0,), network_pinn_seconds={"wscc9": 90.0})
+    specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
+    units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings)
+    budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_seconds") for u in units}
+    assert budget[("wscc9", "jax-pinn", "marching")] == 90.0
+    assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
+    assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
+    assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {
+        "id_max_seconds=90.0,max_seconds=90.0", "id_max_seconds=90.0,max_seconds=90.0,query=numba"}
 
 
 def test_work_precision_times_a_compiled_adapter_at_every_t1_once():

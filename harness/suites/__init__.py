@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from harness.suites.accuracy import accuracy
 from harness.suites.identification import identification, observations
 from harness.suites.latency import latency
+from harness.suites.scaling import scaling
 from harness.suites.work_precision import work_precision
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION, Case
 
@@ -34,6 +35,7 @@ class Suite:
     interface: bool = False  # also measured on the do-nothing adapter (the interface's own cost)
     queries: bool = True  # measures queries; False: a spec that differs only in how a trained model is
     #                       queried (`query=numba`) would repeat the same work, so it is not run for it
+    default: bool = True  # run when the command line names no suite
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""
@@ -45,6 +47,8 @@ SUITES: dict[str, Suite] = {suite.name: suite for suite in (
     Suite("latency", latency, interface=True),
     Suite("work_precision", work_precision),
     Suite("identification", identification, needs_fit=False, own_case=identification_case, queries=False),
+    Suite("scaling", scaling, default=False),
 )}
+DEFAULT_SUITES = tuple(name for name, suite in SUITES.items() if suite.default)
 
-__all__ = ["SUITES", "Suite", "accuracy", "identification", "identification_case", "latency", "observations", "work_precision"]
+__all__ = ["DEFAULT_SUITES", "SUITES", "Suite", "accuracy", "identification", "identification_case", "latency", "observations", "scaling", "work_precision"]

@@ -59,10 +59,12 @@ def pair_observations(case: Case, settings: Settings, pair_index: int, noise: fl
 
 def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str]]:
     """(truth index, noise, data) of every identification: each truth at each noise level on the
-    reference, and noise-free on the paper's ode45 data for a pair the paper published data of."""
+    reference (a multi-machine case: `settings.network_noise_levels`), and noise-free on the paper's
+    ode45 data for a pair the paper published data of."""
     runs = []
+    noise_levels = settings.noise_levels if case in SMIB_CASES else settings.network_noise_levels
     for pair_index, (m, d) in enumerate(truths(case, settings)):
-        runs += [(pair_index, noise, REFERENCE_DATA) for noise in settings.noise_levels]
+        runs += [(pair_index, noise, REFERENCE_DATA) for noise in noise_levels]
         if seed_reference(case.with_params(m, d)) is not None:
             runs.append((pair_index, 0.0, PAPER_DATA))
     return runs
@@ -101,6 +103,8 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
     if solver.config in settings.skip_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
                            "(--full runs it)"}]
+    if case not in SMIB_CASES and case.name not in settings.network_identify_cases:
+        return [{"status": f"skipped: {case.name} not identified in the {settings.name} run (--full runs it)"}]
     if case not in SMIB_CASES and solver.config not in settings.network_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified on multi-machine cases (only "
                            f"{', '.join(settings.network_identify_configs)})"}]
