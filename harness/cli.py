@@ -69,8 +69,8 @@ def _parser() -> argparse.ArgumentParser:
     where = run.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDRESS", default=None,
                        help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) "
-                            "instead of in this process; its workers need swingbench installed and "
-                            "--nthreads equal to --threads")
+                            "instead of in this process; its workers need swingbench installed and run one "
+                            "unit at a time (dask worker ADDRESS --nthreads 1)")
     where.add_argument("--dask-local", action="store_true",
                        help="run the units on a local dask.distributed cluster of one worker process")
 
@@ -116,7 +116,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
-    limits = settings.scaling_unit_limits if "scaling" in suites else None
+    if "scaling" in suites and suites != ["scaling"]:
+        raise SystemExit("swingbench run: --suite scaling runs alone (its units run in processes of their own, "
+                         "its PINNs on an iteration budget)")
+    if suites == ["scaling"]:
+        settings = settings.for_scaling()
+    limits = settings.unit_limits
     if args.unit_seconds is not None or args.unit_memory is not None:
         if any(x is not None and not x > 0 for x in (args.unit_seconds, args.unit_memory)):
             raise SystemExit("swingbench run: --unit-seconds and --unit-memory must be > 0")
@@ -138,7 +143,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
-        with executors.choose(args.scheduler, args.dask_local, workers=1, threads=args.threads) as executor:
+        with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
             execute(plan(specs, cases, [SUITES[name] for name in suites], settings), settings, store, executor,
                     progress=progress, done=contents.completed if contents else None)  # resume prepared
     except KeyboardInterrupt:

@@ -57,6 +57,9 @@ PAPER_PAIR: tuple[float, float] = (SMIB_IDENTIFICATION.m[0], SMIB_IDENTIFICATION
 # The scaling suite's cases, by number of machines: the published systems, then pandapower's
 # MATPOWER / PGLib cases with machine data by rule (systems.family).
 SCALING_CASES = ("wscc9", "ieee39", "case118", "case300", "case1354pegase", "case2869pegase")
+# PINNs in a scaling run: a fixed budget of Levenberg-Marquardt iterations per time-marching window
+# and no wall-clock limit, so that their preparation cost shows how training grows with N.
+SCALING_PINN_OPTIONS = {"max_iterations": 100, "max_seconds": None}
 # What one unit of the scaling suite (build, fit, queries of one adapter on one case) may take.
 SCALING_UNIT_LIMITS = Limits(seconds=1800.0, rss_mb=16384.0)
 
@@ -79,7 +82,7 @@ class Settings:
     budget (`budgeted`). `unit_limits` (None: none) runs each unit in a fresh process under a
     wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
     `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
-    of `scaling_n_p1` x `scaling_n_t`."""
+    of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`)."""
 
     name: str = "default"
     threads: int = 2
@@ -110,6 +113,7 @@ class Settings:
     scaling_n_p1: int = 4
     scaling_n_t: int = 101
     scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
+    scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
 
     def measures(self, spec: SolverSpec, case: Case) -> bool:
         """Whether a run measures `spec` on `case`. Multi-machine cases (no infinite bus) cost a PINN
@@ -132,6 +136,12 @@ class Settings:
             return spec
         budget = [(key, float(seconds)) for key in ("max_seconds", "id_max_seconds") if key in cls.OPTIONS]
         return replace(spec, options=tuple(sorted((*spec.options, *budget))))
+
+    def for_scaling(self) -> Settings:
+        """These settings for a run of the scaling suite alone: each unit under
+        `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds)."""
+        return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_seconds={},
+                       pinn_options={**self.pinn_options, **self.scaling_pinn_options})
 
     @property
     def quick(self) -> bool:

@@ -490,6 +490,28 @@ def test_bad_options_raise(name, bad):
         make_solver(name, CASE, **bad)
 
 
+def test_torch_trains_on_the_device_it_is_given():
+    _need("torch-pinn")
+    import torch
+
+    solver = make_solver("torch-pinn", CASE, **SMALL)
+    assert solver.options["device"] == "cpu"
+    cpu = solver.fit()
+    assert "trained on" not in cpu.message
+    with pytest.raises(ValueError, match="device"):
+        make_solver("torch-pinn", CASE, device="tpu")
+    with pytest.raises(ValueError, match="device"):
+        make_solver("jax-pinn", CASE, device="cuda")  # the JAX backend trains where JAX computes
+    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
+    if not torch.cuda.is_available():
+        with pytest.raises(ValueError, match="device='cuda': torch .* finds no CUDA device"):
+            gpu.fit()
+        return
+    report = gpu.fit()  # on a GPU machine: the same network to float64 rounding, recorded
+    assert "trained on" in report.message
+    np.testing.assert_allclose(gpu.theta, solver.theta, rtol=1e-6, atol=1e-9)
+
+
 def test_progress_is_quiet_under_pytest():
     assert _progress_enabled(None) is False
     assert _progress_enabled(True) is True

@@ -76,6 +76,17 @@ def test_a_unit_past_its_time_limit_is_a_row_that_says_so(tmp_path):
 def test_bad_limits_are_one_line_errors(tmp_path):
     with pytest.raises(SystemExit, match="--unit-seconds and --unit-memory must be > 0"):
         main(["run", "--suite", "scaling", "--unit-memory", "0", "--out", str(tmp_path / "out")])
+    with pytest.raises(SystemExit, match="--suite scaling runs alone"):
+        main(["run", "--suite", "scaling", "accuracy", "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out").exists()
+
+
+def test_scaling_settings_budget_pinns_by_iterations():
+    from harness.runs import DEFAULT, SCALING_PINN_OPTIONS
+
+    settings = DEFAULT.for_scaling()
+    assert settings.unit_limits == DEFAULT.scaling_unit_limits and settings.network_pinn_seconds == {}
+    assert settings.pinn_options == SCALING_PINN_OPTIONS and SCALING_PINN_OPTIONS["max_seconds"] is None
 
 
 def test_dask_gives_the_same_rows(tiny_run, tmp_path):

@@ -273,14 +273,6 @@ def test_dask_sweep_on_a_local_cluster(tmp_path):
         assert all(r["worker"].split(":")[1] != str(os.getpid()) for r in RowStore(out).rows())
 
 
-def test_dask_local_flag(tmp_path):
-    pytest.importorskip("distributed")
-    out = tmp_path / "out"
-    assert _cli(str(_write(tmp_path, CHEAP)), "--out", str(out), "--dask-local", "--workers", "1") == 0
-    _check_outputs(out, 2)
-    assert json.loads((out / "metadata.json").read_text())["executor"] == "dask LocalCluster, 1 worker process(es)"
-
-
 # ------------------------------------------------------------------------------------- summary
 
 def test_summary_statistics_over_seeds():

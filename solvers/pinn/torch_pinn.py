@@ -1,4 +1,4 @@
-"""The PINN adapter on PyTorch (CPU): torch.func / torch.autograd for training, a hand-rolled
+"""The PINN adapter on PyTorch (training on the CPU, or a CUDA GPU with `device="cuda"`): torch.func / torch.autograd for training, a hand-rolled
 forward-mode pass for queries.
 
 Training evaluates the shared `solvers.pinn.network` with torch ops: the Jacobian of
@@ -14,21 +14,21 @@ the shared network to rounding error.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import torch
 from torch import func as tfunc
 
-from solvers.pinn.common import Evaluator, PinnSolver, Trainer
+from solvers.pinn.common import Evaluator, PinnOptions, PinnSolver, Trainer
 from solvers.pinn.network import Ops, Physics, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem
 
-__all__ = ["OPS", "OPS_AUTOGRAD", "TorchPinn"]
+__all__ = ["OPS", "OPS_AUTOGRAD", "TorchOptions", "TorchPinn"]
 
 
 def _asarray(x: np.ndarray, like: torch.Tensor) -> torch.Tensor:
-    return torch.as_tensor(x, dtype=like.dtype)
+    return torch.as_tensor(x, dtype=like.dtype, device=like.device)
 
 
 OPS = Ops(
@@ -191,26 +191,37 @@ class _FastForward(Evaluator):
         return a0, phi2, np.ascontiguousarray(omega0), None, phi
 
 
+class TorchOptions(PinnOptions):
+    """`PinnOptions` and where training computes: device "cpu" (default) or "cuda" (the first
+    CUDA GPU). The optimiser's linear algebra and every query stay on the CPU."""
+
+    device: Literal["cpu", "cuda"] = "cpu"
+
+
 class TorchPinn(PinnSolver):
-    """PINN on PyTorch; see `solvers.pinn.common.PinnSolver` for the options, configs and files."""
+    """PINN on PyTorch; see `solvers.pinn.common.PinnSolver` for the options, configs and files,
+    and `TorchOptions` for `device`."""
 
     name: ClassVar[str] = "torch-pinn"
+    SCHEMA = TorchOptions
 
     def _prepare_backend(self) -> str:
         torch.set_num_threads(self.options["threads"])
-        return ""
+        if self.options["device"] == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device='cuda': torch {torch.__version__} finds no CUDA device here")
+        return "" if self.options["device"] == "cpu" else f"trained on {torch.cuda.get_device_name(0)}"
 
     def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
-        tdtype = _DTYPES[dtype]
-        data = {key: torch.as_tensor(getattr(problem, key), dtype=tdtype)
+        tdtype, device = _DTYPES[dtype], torch.device(self.options["device"])
+        data = {key: torch.as_tensor(getattr(problem, key), dtype=tdtype, device=device)
                 for key in ("t_u", "p_u", "targets", "t_f", "p_f", "start_u", "start_f")
                 if getattr(problem, key) is not None}
 
         def tensor(theta: np.ndarray) -> torch.Tensor:
-            return torch.from_numpy(np.asarray(theta, np.float64)).to(tdtype)
+            return torch.from_numpy(np.asarray(theta, np.float64)).to(device=device, dtype=tdtype)
 
         def numpy(x: torch.Tensor) -> np.ndarray:
-            return x.detach().to(torch.float64).numpy()
+            return x.detach().to(torch.float64).cpu().numpy()
 
         def residuals(theta: np.ndarray) -> np.ndarray:
             with torch.enable_grad():  # reverse-mode t-derivatives: 1.9 ms against 10.5 ms (2 x 16)
