@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
+    "COI_DELTA",
     "COMPILED",
     "GRID_QUERY",
     "LITERATURE",
@@ -38,6 +39,7 @@ __all__ = [
     "t1_column",
     "time_at_accuracy",
     "trained",
+    "verdict_rows",
 ]
 
 
@@ -190,6 +192,21 @@ def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
     raise ValueError(f"unknown rung {rung!r}; known: {', '.join(RUNGS)}")
 
 
+# The accuracy suite's quantity of the angles relative to the centre of inertia (systems without an
+# infinite bus); the verdicts of such a case compare at it (see `verdict_rows`).
+COI_DELTA = "delta - delta_COI"
+
+
+def verdict_rows(acc: pd.DataFrame) -> pd.DataFrame:
+    """The accuracy rows every verdict compares at: delta against the reference, or, when the rows
+    hold it (a case without an infinite bus), the angles relative to the centre of inertia, the
+    measure the work-precision points of such a case are read at (`harness.report.case_sections`):
+    a PINN and its classical rivals judged by one measure."""
+    acc = acc[acc["against"] == "reference"]
+    quantity = COI_DELTA if (acc["quantity"] == COI_DELTA).any() else "delta"
+    return acc[acc["quantity"] == quantity]
+
+
 def fastest_classical(frames: dict, query: str, max_rel_l2: float, rung: str | None = None
                       ) -> tuple[str, float] | None:
     """The fastest classical option for `query` whose delta rel. L2 is at most `max_rel_l2`:
@@ -200,7 +217,8 @@ def fastest_classical(frames: dict, query: str, max_rel_l2: float, rung: str | N
     candidates: list[tuple[str, float]] = []
     acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
     if not acc.empty and not lat.empty:
-        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & _on_rung(acc, rung)]
+        acc = verdict_rows(acc)
+        acc = acc[_on_rung(acc, rung)]
         good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
         lat = lat[(lat["query"] == query) & _on_rung(lat, rung)]
         lat = lat.assign(label=label(lat))
@@ -236,7 +254,8 @@ def ladder(frames: dict, query: str) -> pd.DataFrame:
     acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
     if acc.empty or lat.empty:
         return pd.DataFrame()
-    acc = first_seed(acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & trained(acc)])
+    acc = verdict_rows(acc)
+    acc = first_seed(acc[trained(acc)])
     error = dict(zip(label(acc), acc["rel_l2"]))
     lat = first_seed(lat[(lat["query"] == query) & trained(lat)])
     fit = first_seed(ok(frames.get("fit")))

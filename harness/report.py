@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis import (
+    COI_DELTA,
     GRID_QUERY,
     POINT_QUERY,
     break_even,
@@ -35,7 +36,6 @@ from harness.paper import paper_table
 from harness.plots import SCALING_PLOTS
 from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import atomic_write
-from harness.suites.accuracy import COI_DELTA
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
@@ -403,7 +403,11 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
     figures = []
     if plots:
-        from harness.plots import make_plots
+        from harness.plots import PLOTS, make_plots
+
+        for old in (*out_dir.glob("*.png"), *out_dir.glob("*.pdf")):  # a previous run's plots, of other cases
+            if old.stem.split("-", 1)[0] in (*PLOTS, *SCALING_PLOTS):
+                old.unlink()
 
         for name, own, _ in sections:
             figures += make_plots(own, out_dir, suffix=f"-{name}" if len(sections) > 1 else "")

@@ -22,6 +22,7 @@ from harness.analysis import (
     ladder,
     ok,
     trained,
+    verdict_rows,
 )
 
 __all__ = ["crossover", "ladder_queries", "ladder_rows", "ladder_table", "verdict_lines"]
@@ -82,7 +83,8 @@ def _compiled_curves(frames: dict, max_rel_l2: float) -> list[tuple[str, dict[fl
     curves = []
     lat, acc = ok(frames.get("latency")), ok(frames.get("accuracy"))
     if not lat.empty and not acc.empty:
-        acc = acc[(acc["quantity"] == "delta") & (acc["against"] == "reference") & compiled(acc) & ~trained(acc)]
+        acc = verdict_rows(acc)
+        acc = acc[compiled(acc) & ~trained(acc)]
         good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
         lat = lat[(lat["kind"] == "single point") & compiled(lat) & ~trained(lat)]
         for name, g in lat.groupby(label(lat), sort=False):

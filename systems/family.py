@@ -33,8 +33,8 @@ Machine data rule (for the cases without dynamic data):
     shifter makes Ybus, and so G and B, unsymmetric, which `Case` does not allow. The power flow is
     solved after that, so the equilibrium is exact for the network modelled.
 Power flow: pandapower's Newton-Raphson at 1e-10 MVA (as `grids`), numba off (measured: no faster
-at 9241 buses, 0.4 s, and it compiles for seconds). Nets of 1000 buses or more are reduced with
-sparse matrices (`network.kron_reduce_sparse`).
+at 9241 buses, 0.4 s, and it compiles for seconds). The reduction is sparse, as for every net
+(`network.kron_reduce_sparse`).
 """
 
 from __future__ import annotations

@@ -115,6 +115,7 @@ def test_cli_run_and_report(tmp_path, capsys):
     text = readme.read_text()
     assert text.startswith("intro\n") and text.endswith("end\n") and "old" not in text
     assert "casadi-cvodes [default]" in text
+    assert "![" not in text  # no work-precision figure in an accuracy run, so no link to one
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["threads"] == 2 and "version_numpy" in meta
     (out / "tables.md").unlink()
@@ -174,7 +175,10 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
         *({"suite": "work_precision", **ode, "rtol": r, "atol": r * 1e-3, "rel_l2_delta": e, "median_s": s}
           for r, e, s in ((1e-3, 1e-2, 0.001), (1e-6, 1e-5, 0.004))),
     ]
+    (tmp_path / "figure3-wscc9.png").write_bytes(b"a plot of an earlier run's case")
+    (tmp_path / "notes.png").write_bytes(b"not a plot of ours")
     markdown = write_report(rows, tmp_path, {"threads": 2}, plots=True)
+    assert not (tmp_path / "figure3-wscc9.png").exists() and (tmp_path / "notes.png").exists()
     # PINN query 2 ms vs 4 ms classical at least as accurate: N* = 50 / (0.004 - 0.002) = 25,000
     assert "25,000" in markdown
     # on the work-precision curve the classical time at 1e-3 is 4 ms * 4^(-2/3) = 1.59 ms: 0.794x

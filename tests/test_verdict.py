@@ -116,3 +116,27 @@ def test_crossover_takes_the_fastest_compiled_option_at_matched_accuracy_from_th
     x = crossover(suite_frames([*_rows(), sweep]))
     assert x["classical"] == "numba-rk [default, rtol=1e-05, atol=1e-08]"
     assert x["how"] == "crossover" and x["t1_cross_s"] == pytest.approx(12.5)
+
+
+def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy():
+    """Absolute angles drift together: their error is smaller than that of the swings. A PINN and
+    its classical rivals are judged by one measure, the COI-relative one when the rows hold it."""
+    import pandas as pd
+
+    from harness.analysis import COI_DELTA, GRID_QUERY, ladder, verdict_rows
+
+    base = {"case": "wscc9", "config": "default", "variant": "", "status": "ok"}
+    pinn, ode = {**base, "solver": "toy-pinn", "seed": 0}, {**base, "solver": "ode", "seed": -1}
+    acc = pd.DataFrame([
+        {**pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-5},
+        {**pinn, "quantity": COI_DELTA, "against": "reference", "rel_l2": 2e-5},
+        {**ode, "quantity": "delta", "against": "reference", "rel_l2": 1e-6},
+        {**ode, "quantity": COI_DELTA, "against": "reference", "rel_l2": 1.5e-5},
+    ])
+    assert set(verdict_rows(acc)["quantity"]) == {COI_DELTA}
+    assert set(verdict_rows(acc[acc["quantity"] == "delta"])["quantity"]) == {"delta"}  # the SMIB
+    lat = pd.DataFrame([{**r, "query": GRID_QUERY, "kind": "grid", "median_s": s}
+                        for r, s in ((pinn, 0.002), (ode, 0.004))])
+    (row,) = ladder({"accuracy": acc, "latency": lat}, GRID_QUERY).to_dict("records")
+    assert row["pinn_rel_l2"] == 2e-5  # not the absolute 1e-5
+    assert any(row[c] == 0.004 for c in row if c.endswith(": s"))  # ode's COI 1.5e-5 <= 2e-5: a rival

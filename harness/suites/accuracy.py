@@ -5,14 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from harness import metrics
+from harness.analysis import COI_DELTA
 from harness.runs import Settings
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
 from systems.reference import OFF_TRAINING, reference, seed_reference
-
-# The quantity of the angles relative to the centre of inertia (systems without an infinite bus).
-COI_DELTA = "delta - delta_COI"
 
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
