@@ -5,8 +5,8 @@
 `limits.seconds` of wall-clock time, or once the resident memory of the child and its own
 children exceeds `limits.rss_mb`, the whole session is killed and `OverLimit` raised, saying
 which limit and what was reached. Otherwise the child's result (or its exception, raised here)
-comes back with the child's peak resident set size (`ru_maxrss`, MiB), which is the peak of
-everything it did: imports, building, training, queries.
+comes back with the child's peak resident set size (VmHWM, MiB), which is the peak of everything
+it did: imports, building, training, queries.
 
 It starts with `subprocess`, not `multiprocessing`, so it also works inside a daemonic worker
 process (joblib's, Dask's). `fn` must be importable (a module-level function) and its arguments
@@ -108,6 +108,22 @@ def call_isolated(fn: Callable[..., Any], *args: Any, limits: Limits = NO_LIMITS
     return value, peak_mb
 
 
+def _peak_rss_mib() -> float:
+    """This process's peak resident memory (MiB): VmHWM of /proc/self/status, the high-water mark of
+    this process's own memory since its exec. Not `ru_maxrss`: on Linux that survives exec and
+    starts at the parent's resident size at fork (measured: every child of a 498 MiB parent
+    reported 498 MiB). Elsewhere `ru_maxrss` (KiB on Linux, bytes on macOS), an upper bound."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    maxrss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return maxrss / 2**20 if sys.platform == "darwin" else maxrss / 1024
+
+
 def _child(inp: str, out: str) -> None:
     with open(inp, "rb") as f:
         sys.path[:] = pickle.load(f)
@@ -116,7 +132,7 @@ def _child(inp: str, out: str) -> None:
         result = (True, fn(*args))
     except Exception as exc:  # noqa: BLE001 - handed to the parent, which raises it
         result = (False, exc)
-    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
+    peak_mb = _peak_rss_mib()
     try:
         payload = pickle.dumps((*result, peak_mb))
     except Exception:  # noqa: BLE001 - an unpicklable exception: its text instead

@@ -31,6 +31,18 @@ def test_result_and_peak_memory_come_back_from_another_process():
     assert 5 < peak_mb < 2000  # a bare interpreter with numpy-free imports: tens of MiB
 
 
+def _bare() -> int:
+    return 0
+
+
+def test_the_peak_memory_is_the_child_s_own_not_its_parent_s():
+    ballast = bytearray(600 * 2**20)  # this process: 600 MiB more resident than the child will be
+    ballast[::4096] = b"x" * len(ballast[::4096])
+    _, peak_mb = call_isolated(_bare)
+    del ballast
+    assert peak_mb < 400  # the bare child only; ru_maxrss would report this process's size
+
+
 def test_the_child_s_exception_is_raised_here():
     with pytest.raises(ValueError, match="bad input named here"):
         call_isolated(_raise)
