@@ -125,8 +125,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.unit_seconds is not None or args.unit_memory is not None:
         if any(x is not None and not x > 0 for x in (args.unit_seconds, args.unit_memory)):
             raise SystemExit("swingbench run: --unit-seconds and --unit-memory must be > 0")
-        limits = Limits(args.unit_seconds if args.unit_seconds is not None else limits and limits.seconds,
-                        args.unit_memory if args.unit_memory is not None else limits and limits.rss_mb)
+        given = {"seconds": args.unit_seconds, "rss_mb": args.unit_memory}
+        limits = (limits or Limits())._replace(**{k: v for k, v in given.items() if v is not None})
     settings = replace(settings, unit_limits=limits)
     cases = [CASES[name] for name in args.case or (settings.scaling_cases if suites == ["scaling"] else settings.cases)]
     specs = default_specs(args.solver, args.config, settings)

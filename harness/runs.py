@@ -154,8 +154,9 @@ QUICK = Settings(
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
-# make bench: every suite on the SMIB and the three multi-machine cases within ~60 minutes on 2
-# cores. SMIB: two seeds of each configuration of the paper and of `default`, one of the two-output
+# make bench: every suite on the SMIB and the three multi-machine cases, aiming at 60 minutes on 2
+# cores and not there yet (measured 2026-11-27: SMIB + wscc9 ~67 min, ieee39 ~32 min more; the
+# Python-driven adapters' sweeps and large latency queries on the networks cost most). SMIB: two seeds of each configuration of the paper and of `default`, one of the two-output
 # ones; identification on the paper's own case (m = 0.25, d = 0.15, also from the paper's ode45
 # data) and one of the 10 pairs, PINN identification budgets of each configuration (iterations), not
 # for the two-output networks (the paper identifies with one output only). Multi-machine cases: PINNs
