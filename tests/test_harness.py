@@ -97,6 +97,31 @@ def test_default_specs_cover_configs_and_batch_modes():
         default_specs(["nope"])
 
 
+def test_omitted_configs_run_only_when_named():
+    omitting = replace(DEFAULT, omit_configs=("tight",))
+    assert [s.config for s in default_specs(["scipy-rk45"], None, omitting)] == ["default", "default"]
+    assert {s.config for s in default_specs(["scipy-rk45"], ["tight"], omitting)} == {"tight"}
+
+
+def test_python_driven_adapters_sweep_fewer_tolerances_on_networks_only():
+    from systems.cases import CASES
+
+    settings = replace(DEFAULT, wp_rtols=(1e-3, 1e-4, 1e-5), network_wp_rtols=(1e-3,))
+    assert settings.sweep_rtols(False, CASES["wscc9"]) == (1e-3,)
+    assert settings.sweep_rtols(True, CASES["wscc9"]) == settings.wp_rtols
+    assert settings.sweep_rtols(False, SMIB_INFERENCE) == settings.wp_rtols
+    assert replace(settings, network_wp_rtols=None).sweep_rtols(False, CASES["wscc9"]) == settings.wp_rtols
+
+
+def test_latency_extrapolates_a_query_at_least_linearly_and_faster_when_it_grows_faster():
+    from harness.suites.latency import _estimate
+
+    assert _estimate("throughput", 1000, {}) is None
+    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 0.5)]}) == pytest.approx(5.0)
+    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 10.0)]}) == pytest.approx(1000.0)
+    assert _estimate("points batch", 100, {"single point": [(1, 0.01), (1, 0.02)]}) == pytest.approx(2.0)
+
+
 def test_time_call_counts_repeats():
     calls = []
     timing = time_call(lambda: calls.append(1), warmup=2, min_repeats=4, budget_s=0.0)

@@ -3,6 +3,8 @@ and a batch of single-point queries at scattered (t1, P1) in one call."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from harness.runs import Settings
@@ -41,34 +43,40 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
     return out
 
 
-def _estimate(kind: str, n: int, last: dict[str, tuple[int, float]]) -> float | None:
-    """Seconds a query of `kind` and size `n` should take, from the last timed one of its kind
-    (a batch of points from the single point), or None when nothing of the kind was timed yet."""
-    source = "single point" if kind == "points batch" else kind
-    if source not in last:
+def _estimate(kind: str, n: int, timed: dict[str, list[tuple[int, float]]]) -> float | None:
+    """Seconds a query of `kind` and size `n` should take, extrapolated from the timed queries of
+    its kind (a batch of points from the single point): from the last one, growing as n^p with p
+    the slope of the last two on log-log axes and at least 1 (a stacked system's implicit solve
+    can grow faster than linearly), or None when nothing of the kind was timed yet."""
+    points = timed.get("single point" if kind == "points batch" else kind)
+    if not points:
         return None
-    size, seconds = last[source]
-    return seconds * n / size
+    size, seconds = points[-1]
+    power = 1.0
+    if len(points) > 1 and points[-2][0] < size and points[-2][1] > 0:
+        power = max(1.0, math.log(seconds / points[-2][1]) / math.log(size / points[-2][0]))
+    return seconds * (n / size) ** power
 
 
 def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """Median, quartiles and minimum (s) of warm `solve` calls (delta and omega), and of one
     `solve_points` call for the batch of points; `per_query_s` = median / number of trajectories
-    or points. A query whose cost, extrapolated from the previous query of its kind, exceeds
-    10 x `max_call_s` is skipped with a row that says so, rather than left out silently."""
+    or points. A query whose cost, extrapolated from the earlier queries of its kind (`_estimate`),
+    exceeds `max_query_s` is skipped with a row that says so, rather than left out silently."""
     rows = []
-    last: dict[str, tuple[int, float]] = {}
+    timed: dict[str, list[tuple[int, float]]] = {}
     for kind, name, t, P1 in queries(case, settings):
         n = P1.size
         base = {"kind": kind, "query": name, "n_trajectories": n, "n_times": t.size if kind != "points batch" else 1,
                 "t1_s": float(t[0]) if kind == "single point" else np.nan}
-        estimate = _estimate(kind, n, last)
-        if estimate is not None and estimate > 10 * settings.max_call_s:
-            rows.append({**base, "status": f"skipped: estimated {estimate:.3g} s per call"})
+        estimate = _estimate(kind, n, timed)
+        if estimate is not None and estimate > settings.max_query_s:
+            rows.append({**base, "status": f"skipped: estimated {estimate:.3g} s per call, over "
+                                           f"{settings.max_query_s:g} s"})
             continue
         call = solver.solve_points if kind == "points batch" else solver.solve
         timing = time_call(lambda t=t, P1=P1, call=call: call(t, P1), min_repeats=settings.min_repeats,
                            budget_s=settings.latency_budget_s, slow_s=settings.max_call_s)
-        last[kind] = (n, timing.median_s)  # single points: the last t1, the largest (conservative)
+        timed.setdefault(kind, []).append((n, timing.median_s))  # single points: by t1, the last the largest
         rows.append({**base, **timing._asdict(), "per_query_s": timing.median_s / n})
     return rows
