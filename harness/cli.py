@@ -40,7 +40,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help="adapters to run (default: every registered one)")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
-                     help="named configurations to run (default: every config of each adapter)")
+                     help="named configurations to run (default: every config of each adapter but the "
+                          "two-output PINNs)")
+    run.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                     help="set an adapter option in every selected adapter that has it (repeatable; VALUE "
+                          "read as JSON where it is, e.g. --option optimizer=lbfgs --option max_iterations=100); "
+                          "the rows' variant shows it")
     run.add_argument("--case", nargs="+", default=None, metavar="NAME",
                      help="cases (default: smib-inference and the multi-machine wscc9, kundur4, ieee39; --quick: "
                           "smib-inference and wscc9); identification of a SMIB case uses smib-identification with "
@@ -102,7 +107,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.isolation import Limits
     from harness.report import metadata, write_report
     from harness.runner import execute, interrupted_message, open_results, plan
-    from harness.runs import DEFAULT, FULL, QUICK, default_specs
+    from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
@@ -132,6 +137,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise SystemExit("swingbench run: no solver/config combination selected")
+    if args.option:
+        try:
+            specs = with_options(specs, dict(parse_option(text) for text in args.option), cases[0])
+        except ValueError as exc:
+            raise SystemExit(f"swingbench run: --option: {exc}") from None
     store, contents = open_results(args.out, args.resume, "run",
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])

@@ -3,6 +3,7 @@ the settings of a run (budgets, seeds, pairs, noise levels)."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -227,3 +228,36 @@ def default_specs(
     if solvers is None:
         specs.append(SolverSpec(INTERFACE))
     return specs
+
+
+def parse_option(text: str) -> tuple[str, Any]:
+    """"KEY=VALUE" -> (KEY, VALUE), VALUE read as JSON where it is JSON ("100" -> 100, "null" ->
+    None, "[0.1, 2]" -> a list) and as text otherwise ("lbfgs")."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise ValueError(f"an option override is KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
+def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any], case: Case) -> list[SolverSpec]:
+    """`specs` with `overrides` set in the options of every spec whose adapter has the option (its
+    variant then shows them). ValueError when an override is an option of none of the specs'
+    adapters, or when a value is invalid (each changed spec's adapter is constructed on `case`,
+    not fitted, to validate it)."""
+    specs = list(specs)
+    known = {key for spec in specs if SOLVERS.get(spec.solver) for key in SOLVERS[spec.solver].OPTIONS}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"option(s) {', '.join(unknown)} belong to none of the selected adapters")
+    out = []
+    for spec in specs:
+        cls = SOLVERS.get(spec.solver)
+        mine = {k: v for k, v in overrides.items() if cls is not None and k in cls.OPTIONS}
+        if mine:
+            spec = replace(spec, options=tuple(sorted({**dict(spec.options), **mine}.items())))
+            spec.make(case)  # raises ValueError naming a bad value
+        out.append(spec)
+    return out

@@ -26,14 +26,17 @@ from systems.cases import Case, check_array
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
 
-__all__ = ["BOX_FACTOR", "DAMPING_PER_INERTIA", "P1_SPREAD", "ClassicalModel", "bus_indices",
+__all__ = ["BOX_FACTOR", "BOX_OFFSET", "DAMPING_PER_INERTIA", "P1_SPREAD", "ClassicalModel", "bus_indices",
            "classical_model", "electrical_power", "kron_reduce", "kron_reduce_sparse", "network_case"]
 
 # No source gives damping for these classical models. Ours: d_k = 0.5 m_k (1/s), so each
 # electromechanical mode decays as exp(-t d/(2m)) = exp(-t/4 s): visible over a 10 s horizon.
 DAMPING_PER_INERTIA = 0.5
-# The identification search box of each machine: (m_k / 4, 4 m_k) and (d_k / 4, 4 d_k).
+# The identification search box of each machine spans a factor BOX_FACTOR**2 = 16 around
+# BOX_OFFSET x the truth: (m_k / 2, 8 m_k) and (d_k / 2, 8 d_k). Off-centre on purpose: a method that
+# starts at the box's (log) centre starts at twice the truth, not at it.
 BOX_FACTOR = 4.0
+BOX_OFFSET = 2.0
 # The scenario's P1 range: generator 1's operating P +- 30 %.
 P1_SPREAD = 0.3
 
@@ -250,17 +253,21 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
 
 
 def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread: float = P1_SPREAD,
-                 box_factor: float = BOX_FACTOR, source: str = "") -> Case:
+                 box_factor: float = BOX_FACTOR, box_offset: float = BOX_OFFSET, source: str = "") -> Case:
     """The `Case` of `model`: at rest at its equilibrium (delta0, omega0 = 0), no infinite bus,
-    P1 in generator 1's p_m[0] (1 -+ p1_spread), boxes (x / box_factor, box_factor x) for m and d."""
+    P1 in generator 1's p_m[0] (1 -+ p1_spread), boxes (c / box_factor, c box_factor) for m and d
+    with c = box_offset x the truth (the truth must lie inside: box_offset < box_factor)."""
     if not (0 <= p1_spread < 1):
         raise ValueError(f"p1_spread must be in [0, 1), got {p1_spread!r}")
     if not box_factor > 1:
         raise ValueError(f"box_factor must be > 1, got {box_factor!r}")
+    if not 1 / box_factor < box_offset < box_factor:
+        raise ValueError(f"box_offset must be in (1 / box_factor, box_factor) = ({1 / box_factor:g}, "
+                         f"{box_factor:g}) so that the truth is inside its box, got {box_offset!r}")
     p1 = sorted((model.p_m[0] * (1 - p1_spread), model.p_m[0] * (1 + p1_spread)))
     n = model.m.size
     return Case(name=name, m=model.m, d=model.d, delta0=model.delta0, omega0=np.zeros(n), p_m=model.p_m,
                 E=model.E, G=model.G, B=model.B, g_inf=np.zeros(n), b_inf=np.zeros(n), t_final=t_final,
                 p1_min=p1[0], p1_max=p1[1],
-                m_box=np.column_stack([model.m / box_factor, model.m * box_factor]),
-                d_box=np.column_stack([model.d / box_factor, model.d * box_factor]), source=source)
+                m_box=box_offset * np.column_stack([model.m / box_factor, model.m * box_factor]),
+                d_box=box_offset * np.column_stack([model.d / box_factor, model.d * box_factor]), source=source)

@@ -238,3 +238,13 @@ def test_too_few_steps_raise_solve_error():
 def test_failed_integration_names_p1(tight):
     with pytest.raises(SolveError, match=r"diffrax: .*failed at P1=1e\+308"):
         tight.solve([1.0, 20.0], [0.1, 1e308])
+
+
+def test_fit_leaves_shapes_over_its_memory_cap_to_their_first_query(monkeypatch):
+    """A cap of 0 bytes compiles nothing in fit; the first query then compiles and answers the same."""
+    solver = make_solver("diffrax", THREE, "tight")
+    monkeypatch.setattr(type(solver), "FIT_MAX_BYTES", 0)
+    solver.fit()
+    t, P1 = np.linspace(0.0, THREE.t_final, 11), np.array([THREE.p1_min, THREE.p1_max])
+    ref_delta, _ = reference(THREE, t, P1)
+    np.testing.assert_allclose(solver.solve(t, P1).delta, ref_delta, rtol=0, atol=1e-8)

@@ -9,7 +9,7 @@ from scipy.integrate import solve_ivp
 
 from systems import grids
 from systems.cases import CASES
-from systems.network import bus_indices, classical_model, electrical_power, kron_reduce
+from systems.network import bus_indices, classical_model, electrical_power, kron_reduce, network_case
 
 NAMES = ("wscc9", "kundur4", "ieee39")
 N_MACHINES = {"wscc9": 3, "kundur4": 4, "ieee39": 10}
@@ -40,8 +40,8 @@ def test_equilibrium_and_shape(name):
     assert not any(case.omega0) and not case.has_infinite_bus
     assert np.array_equal(G, G.T) and np.array_equal(B, B.T)
     np.testing.assert_allclose(d, 0.5 * m, rtol=1e-15)
-    np.testing.assert_allclose(case.m_box, np.column_stack([m / 4, 4 * m]), rtol=1e-15)
-    np.testing.assert_allclose(case.d_box, np.column_stack([d / 4, 4 * d]), rtol=1e-15)
+    np.testing.assert_allclose(case.m_box, np.column_stack([m / 2, 8 * m]), rtol=1e-15)
+    np.testing.assert_allclose(case.d_box, np.column_stack([d / 2, 8 * d]), rtol=1e-15)
     np.testing.assert_allclose((case.p1_min, case.p1_max), (0.7 * p_m[0], 1.3 * p_m[0]), rtol=1e-14)
     assert case.source
 
@@ -156,6 +156,10 @@ def test_bad_input_names_the_argument():
     unsolved = pp.create_empty_network()
     with pytest.raises(ValueError, match="net"):
         classical_model(unsolved, [0], H=1.0, xd_prime=0.1, f_hz=60.0)
+    model = classical_model(grids.kundur4_net(), buses, **good)
+    for key, value in (("box_factor", 1.0), ("box_offset", 4.0), ("box_offset", 0.2), ("p1_spread", 1.0)):
+        with pytest.raises(ValueError, match=key):
+            network_case("k", model, t_final=1.0, **{key: value})
 
 
 @pytest.mark.slow

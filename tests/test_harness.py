@@ -422,3 +422,21 @@ def test_work_precision_times_a_compiled_adapter_at_every_t1_once():
     assert sorted(times) == list(settings.t1_values_s)
     assert row["point_median_s"] > 0 and all(s > 0 for s in times.values())
     assert row["setting"] == "rtol=1e-06, atol=1e-09" and row["rel_l2_delta"] < 1e-5
+
+
+def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
+    from harness.runs import parse_option, with_options
+
+    assert parse_option("max_iterations=100") == ("max_iterations", 100)
+    assert parse_option("optimizer=lbfgs") == ("optimizer", "lbfgs")
+    assert parse_option("max_seconds=null") == ("max_seconds", None)
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        parse_option("rtol")
+    specs = default_specs(["scipy-rk45", "numba-rk"], ["default"])
+    tuned = with_options(specs, {"batch": "stacked"}, SMIB_INFERENCE)
+    assert {s.variant for s in tuned if s.solver == "scipy-rk45"} == {"batch=stacked"}
+    assert [s.variant for s in tuned if s.solver == "numba-rk"] == [s.variant for s in specs if s.solver == "numba-rk"]
+    with pytest.raises(ValueError, match="none of the selected adapters"):
+        with_options(specs, {"width": 3}, SMIB_INFERENCE)
+    with pytest.raises(ValueError, match="batch"):
+        with_options(specs, {"batch": "sideways"}, SMIB_INFERENCE)

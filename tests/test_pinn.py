@@ -565,6 +565,20 @@ def test_identification_starts_at_the_centre_of_each_box():
     assert spec.start_guess(spec.PinnConfig(), CASE)[0][0] == pytest.approx(0.2, rel=1e-15)
 
 
+def test_identification_horizon_keeps_the_early_observations_and_collocates_within_it():
+    obs = Observations(np.array([0.5, 1.5, 3.0]), np.full(3, 0.3), np.zeros((3, 2)))
+    config = spec.PinnConfig(id_t_max=2.0, id_n_f=40)
+    kept = spec.observations_within(config, obs)
+    assert kept.t.tolist() == [0.5, 1.5] and kept.delta.shape == (2, 2)
+    assert spec.observations_within(spec.PinnConfig(), obs) is obs
+    problem = spec.identification_problem(config, TWO, obs)
+    assert problem.targets.shape == (2, 2) and problem.t_f.max() <= 2.0 and problem.t_f.size == 42
+    assert spec.Architecture.of(config, TWO, identification=True).t_hi == 2.0
+    assert spec.Architecture.of(spec.PinnConfig(), TWO, identification=True).t_hi == TWO.t_final
+    with pytest.raises(ValueError, match="id_t_max=0.1 s: no observation"):
+        spec.observations_within(spec.PinnConfig(id_t_max=0.1), obs)
+
+
 def test_window_edges_and_training_points():
     np.testing.assert_array_equal(spec.window_edges(4.2, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0, 4.2])
     np.testing.assert_array_equal(spec.window_edges(4.0 + 1e-12, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0 + 1e-12])

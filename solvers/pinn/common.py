@@ -404,6 +404,7 @@ class PinnSolver(AbstractSolver):
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
         n = self.case.n
+        obs = spec.observations_within(config, obs)
         arch = Architecture.of(config, self.case, identification=True,
                                p_range=spec.identification_p_range(self.case, obs))
         problem = spec.identification_problem(config, self.case, obs)

@@ -49,6 +49,7 @@ __all__ = [
     "Problem",
     "forward_problem",
     "identification_problem",
+    "observations_within",
     "init_theta",
     "load_model",
     "save_model",
@@ -101,7 +102,11 @@ class PinnConfig:
     the paper); every machine's m_k and d_k are trained as exp(log m_k), exp(log d_k), starting at
     `m_init`, `d_init` (p.u., every machine) or, when None, at the geometric centre of each
     machine's search box (`Case.m_box`, `Case.d_box`; see `start_guess`); budgets
-    `id_max_iterations` and optionally `id_max_seconds`. `seed` draws weights and points.
+    `id_max_iterations` and optionally `id_max_seconds`. `id_t_max` (s; None: the whole horizon)
+    restricts identification to the observations at t <= id_t_max and collocates on [0, id_t_max]:
+    a single network does not learn a multi-machine case's swings beyond a few seconds (see
+    "marching"), and a network that cannot represent the trajectory biases m and d.
+    `seed` draws weights and points.
     """
 
     hidden_layers: PositiveInt = 2
@@ -122,6 +127,7 @@ class PinnConfig:
     id_n_f: NonNegativeInt = 2000
     id_max_iterations: PositiveInt = 1000
     id_max_seconds: PositiveFloat | None = None
+    id_t_max: PositiveFloat | None = None
     m_init: PositiveFloat | None = None
     d_init: PositiveFloat | None = None
     window: PositiveFloat | None = None
@@ -266,7 +272,10 @@ class Architecture:
         p_lo, p_hi = p_range if p_range is not None else (case.p1_min, case.p1_max)
         if p_hi <= p_lo:  # a single P1: any positive width keeps the map finite
             p_lo, p_hi = p_lo - 0.5, p_hi + 0.5
-        t_hi = config.window if config.window is not None and not identification else case.t_final
+        if identification:
+            t_hi = config.id_t_max if config.id_t_max is not None else case.t_final
+        else:
+            t_hi = config.window if config.window is not None else case.t_final
         return cls(
             sizes=(2,) + (width,) * depth + (config.outputs * case.n,), t_lo=0.0, t_hi=float(t_hi),
             p_lo=float(p_lo), p_hi=float(p_hi), hard_ic=config.hard_ic,
@@ -479,14 +488,28 @@ def identification_p_range(case: Case, obs: Observations) -> tuple[float, float]
     return float(min(case.p1_min, obs.P1.min())), float(max(case.p1_max, obs.P1.max()))
 
 
+def observations_within(config: PinnConfig, obs: Observations) -> Observations:
+    """The observations identification uses: those at t <= `config.id_t_max` (all when None).
+    ValueError when none is."""
+    if config.id_t_max is None:
+        return obs
+    keep = obs.t <= config.id_t_max
+    if not keep.any():
+        raise ValueError(f"id_t_max={config.id_t_max:g} s: no observation at t <= {config.id_t_max:g} s "
+                         f"(the earliest is at {obs.t.min():g} s)")
+    return Observations(obs.t[keep], obs.P1[keep], obs.delta[keep],
+                        None if obs.omega is None else obs.omega[keep])
+
+
 def identification_problem(config: PinnConfig, case: Case, obs: Observations) -> Problem:
-    """The training set of `identify`: the observations (delta (n_s, n), and omega when given) as
-    data (targets (n_s, n) or (n_s, 2n)), and
+    """The training set of `identify`: the observations (`observations_within` the identification
+    horizon; delta (n_s, n), and omega when given) as data (targets (n_s, n) or (n_s, 2n)), and
     as collocation points the observations plus `id_n_f` Latin-hypercube points on
-    [0, max(t_final, t_obs)] x the P1 range."""
+    [0, id_t_max] (None: [0, max(t_final, t_obs)]) x the P1 range."""
+    obs = observations_within(config, obs)
     p_range = identification_p_range(case, obs)
-    t_f, p_f = latin_hypercube((0.0, max(case.t_final, float(obs.t.max()))), p_range, config.id_n_f,
-                               config.seed)
+    horizon = config.id_t_max if config.id_t_max is not None else max(case.t_final, float(obs.t.max()))
+    t_f, p_f = latin_hypercube((0.0, horizon), p_range, config.id_n_f, config.seed)
     targets = obs.delta if obs.omega is None else np.concatenate([obs.delta, obs.omega], axis=1)
     return Problem(
         t_u=obs.t.copy(), p_u=obs.P1.copy(), targets=targets,
