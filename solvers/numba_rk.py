@@ -80,10 +80,14 @@ class NumbaRK(AbstractSolver):
             raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
                              f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")
 
-    def _prepare(self) -> None:
+    def _prepare(self, sensitivities: bool = False) -> None:
         """Packed system and options, and the compiled kernels (numba compiles, or loads from its
-        cache, on the first call of each: here, on tiny inputs)."""
+        cache, on the first call of each: here, on tiny inputs); the sensitivity kernel only when
+        `sensitivities` (identification): its right-hand side costs ~n^3 (2n tangents of an n x n
+        coupling), minutes at 1445 machines even on the tiny warm-up."""
         if hasattr(self, "_system"):
+            if sensitivities and not hasattr(self, "_sensitivities"):
+                self._warm(self._sensitivities_kernel())
             return
         options = self.options
         self._system = kernels.system_array(self.case)
@@ -92,10 +96,19 @@ class NumbaRK(AbstractSolver):
         method, n = kernels.METHODS[options["method"]], self.case.n
         self._serial = kernels.kernel(method, False, False, n)
         self._batch = kernels.kernel(method, False, options["parallel"], n)
-        self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
-        t, P1 = np.array([0.0, 0.1]), np.full(2, self.case.p1_min)
-        for run in (self._serial, self._batch, self._sensitivities):
-            run(t, P1, self._system, self._options)
+        for run in (self._serial, self._batch):
+            self._warm(run)
+        if sensitivities:
+            self._warm(self._sensitivities_kernel())
+
+    def _sensitivities_kernel(self):
+        options = self.options
+        self._sensitivities = kernels.kernel(kernels.METHODS[options["method"]], True, options["parallel"],
+                                             self.case.n)
+        return self._sensitivities
+
+    def _warm(self, run) -> None:
+        run(np.array([0.0, 0.1]), np.full(2, self.case.p1_min), self._system, self._options)
 
     def _fit(self) -> None:
         self._prepare()
@@ -121,7 +134,7 @@ class NumbaRK(AbstractSolver):
         refinement integrates the sensitivities along at the configured tolerances and keeps them
         for the Jacobian at the same (m, d), which least squares asks for right after the
         residual."""
-        self._prepare()
+        self._prepare(sensitivities=True)
         layout = ObservationLayout.of(obs)
         coarse = self._options.copy()
         coarse[:2] = np.maximum(coarse[:2], COARSE_TOLERANCES)

@@ -123,6 +123,7 @@ def test_precision_sweep():
 def test_sensitivities_equal_finite_differences(method, case):
     """d(delta, omega)/d(m_1..n, d_1..n), every column, against central differences (step 1e-6)."""
     solver = _fitted("tight", case=case, **TIGHT[method])
+    solver._prepare(sensitivities=True)  # fit leaves the sensitivity kernel to identify
     t, P1 = np.linspace(0.0, case.t_final, 9), np.array([0.1, 0.17])
     n = case.n
 
