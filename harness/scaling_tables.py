@@ -15,6 +15,9 @@ __all__ = ["COSTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_fr
 COSTS = {"prep_s": "preparation (s)", "grid_s": "grid query (s)", "point_s": "single point (s)",
          "peak_rss_mib": "peak memory (MiB)"}
 _KEYS = ["case", "solver", "config", "variant", "seed"]
+# A PINN this far off (rel. L2 of the angles) has not learnt the trajectories: no break-even is
+# computed for it (any classical solver is "as accurate" and slower than a network's forward pass).
+UNCONVERGED_REL_L2 = 0.1
 
 
 def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
@@ -95,7 +98,8 @@ def break_even_by_n(frame: pd.DataFrame) -> pd.DataFrame:
     """Per PINN spec and N: the fastest classical adapter at least as accurate there (grid query
     time per trajectory) and the number of trajectories after which the PINN's preparation pays
     off against it (`analysis.break_even`, preparation minus the classical one's); "never" when
-    the PINN is not faster per trajectory, and no rival when no classical adapter is as accurate."""
+    the PINN is not faster per trajectory, and no rival when no classical adapter is as accurate;
+    none either for a PINN at rel. L2 >= `UNCONVERGED_REL_L2` ("not converged")."""
     if frame.empty:
         return pd.DataFrame()
     rows = []
@@ -106,6 +110,10 @@ def break_even_by_n(frame: pd.DataFrame) -> pd.DataFrame:
             rivals = classical[classical["rel_l2"] <= pinn["rel_l2"]]
             row = {"N": int(n), "PINN": pinn["label"], "PINN rel. L2": fmt(pinn["rel_l2"]),
                    "PINN per trajectory (s)": fmt(pinn_s), "PINN preparation (s)": fmt(pinn["prep_s"])}
+            if pinn["rel_l2"] >= UNCONVERGED_REL_L2:
+                rows.append({**row, "fastest classical at least as accurate": "-",
+                             "break-even trajectories": f"not converged (rel. L2 >= {UNCONVERGED_REL_L2:g})"})
+                continue
             if rivals.empty:
                 rows.append({**row, "fastest classical at least as accurate": "none", "break-even trajectories": "-"})
                 continue

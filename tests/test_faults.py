@@ -69,6 +69,8 @@ def test_resume_after_kills_ends_with_the_rows_of_an_uninterrupted_run(uninterru
         proc.send_signal(sig)
         code = proc.wait(timeout=120)
         err = proc.stderr.read()
+        if code == 0 and err.strip().splitlines()[-1].startswith("[swingbench] wrote"):
+            continue  # the run ended between the poll and the signal: nothing was interrupted
         if not finished and sig == signal.SIGKILL:
             assert code == -signal.SIGKILL
         elif not finished:

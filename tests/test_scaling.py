@@ -128,3 +128,12 @@ def test_break_even_against_the_fastest_classical_at_least_as_accurate():
     (row,) = break_even_by_n(frame).to_dict("records")
     assert row["fastest classical at least as accurate"].startswith("fast [default]")
     assert row["break-even trajectories"] == "100"  # 100 s / (1.1 - 0.1 s per trajectory)
+
+
+def test_no_break_even_for_a_pinn_that_has_not_learnt_the_trajectories():
+    frame = _frame([
+        {"N": 54, "solver": "pinn", "seed": 0, "fit_s": 50.0, "grid_s": 0.001, "rel_l2": 2.0},
+        {"N": 54, "solver": "ode", "fit_s": 0.0, "grid_s": 0.01, "rel_l2": 1e-3},
+    ])
+    (row,) = break_even_by_n(frame).to_dict("records")
+    assert row["break-even trajectories"].startswith("not converged")
