@@ -85,27 +85,19 @@ class NumbaRK(AbstractSolver):
         cache, on the first call of each: here, on tiny inputs); the sensitivity kernel only when
         `sensitivities` (identification): its right-hand side costs ~n^3 (2n tangents of an n x n
         coupling), minutes at 1445 machines even on the tiny warm-up."""
-        if hasattr(self, "_system"):
-            if sensitivities and not hasattr(self, "_sensitivities"):
-                self._warm(self._sensitivities_kernel())
-            return
-        options = self.options
-        self._system = kernels.system_array(self.case)
-        self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]],
-                                 np.float64)
-        method, n = kernels.METHODS[options["method"]], self.case.n
-        self._serial = kernels.kernel(method, False, False, n)
-        self._batch = kernels.kernel(method, False, options["parallel"], n)
-        for run in (self._serial, self._batch):
-            self._warm(run)
-        if sensitivities:
-            self._warm(self._sensitivities_kernel())
-
-    def _sensitivities_kernel(self):
-        options = self.options
-        self._sensitivities = kernels.kernel(kernels.METHODS[options["method"]], True, options["parallel"],
-                                             self.case.n)
-        return self._sensitivities
+        options, n = self.options, self.case.n
+        method = kernels.METHODS[options["method"]]
+        if not hasattr(self, "_system"):
+            self._system = kernels.system_array(self.case)
+            self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]],
+                                     np.float64)
+            self._serial = kernels.kernel(method, False, False, n)
+            self._batch = kernels.kernel(method, False, options["parallel"], n)
+            for run in (self._serial, self._batch):
+                self._warm(run)
+        if sensitivities and not hasattr(self, "_sensitivities"):
+            self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
+            self._warm(self._sensitivities)
 
     def _warm(self, run) -> None:
         run(np.array([0.0, 0.1]), np.full(2, self.case.p1_min), self._system, self._options)
