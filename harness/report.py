@@ -35,7 +35,7 @@ from harness.analysis import (
 from harness.paper import paper_table
 from harness.plots import SCALING_PLOTS
 from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
-from harness.store import atomic_write
+from harness.store import atomic_write, unit_key
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
@@ -342,6 +342,22 @@ def _header(meta: dict) -> str:
             f"numba {get('version_numba')}, diffrax {get('version_diffrax')}.\n\n")
 
 
+def work_minutes(rows: list[dict]) -> str:
+    """One line: the wall time of the run's units of work (their rows' `work_s`, each unit once),
+    by case and in all, in minutes; "" for rows without it (written before it was recorded)."""
+    seconds: dict[str, float] = {}
+    seen = set()
+    for row in rows:
+        key = unit_key(row)
+        if "work_s" in row and key not in seen:
+            seen.add(key)
+            seconds[row["case"]] = seconds.get(row["case"], 0.0) + float(row["work_s"])
+    if not seconds:
+        return ""
+    parts = ", ".join(f"{case} {s / 60:.1f}" for case, s in seconds.items())
+    return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all.\n\n"
+
+
 HEADLINE = ("paper", "ladder", "break_even", "accuracy", "identification")
 
 
@@ -376,7 +392,7 @@ def headline_markdown(rows: list[dict], meta: dict) -> str:
     """The headline tables of a run (for the project README), in Markdown, case by case."""
     frames = suite_frames(rows)
     sections = case_sections(frames)
-    return _header(meta) + "\n".join(_section_markdown(name, own, build_tables(own), HEADLINE, "####")
+    return _header(meta) + work_minutes(rows) + "\n".join(_section_markdown(name, own, build_tables(own), HEADLINE, "####")
                                       for name, own in sections) + scaling_markdown(frames, "####")
 
 
@@ -394,7 +410,8 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
                       or [pd.DataFrame()], ignore_index=True)
     if not steps.empty:
         atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
-    markdown = _header(meta) + "\n".join(_section_markdown(name, own, tables) for name, own, tables in sections)
+    markdown = _header(meta) + work_minutes(rows) + "\n".join(_section_markdown(name, own, tables)
+                                                         for name, own, tables in sections)
     markdown += scaling_markdown(frames)
     latex = "\n".join(f"% {name}: {title}\n{table.to_latex(index=False, escape=True)}"
                       for name, _, tables in sections for title, table in tables.values())

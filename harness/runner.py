@@ -16,6 +16,7 @@ import shlex
 import socket
 import sys
 import tempfile
+import time
 import traceback
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
@@ -81,9 +82,12 @@ def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
     return spec.seed is None or spec.seed == min(seeds)
 
 
-def _query_variant(spec: SolverSpec) -> bool:
-    """Whether `spec` sets an option that only changes how a trained model is queried."""
-    return any(key in QUERY_ONLY_OPTIONS for key, _ in spec.options)
+def _query_variant(spec: SolverSpec, cls: type[AbstractSolver] | None) -> bool:
+    """Whether `spec` sets an option that only changes how a model is queried (a trained model:
+    `QUERY_ONLY_OPTIONS`; the adapter's own `QUERY_OPTIONS`), so that its suites that measure no
+    queries would repeat those of the spec without it: they do not run."""
+    query_only = QUERY_ONLY_OPTIONS | (cls.QUERY_OPTIONS if cls is not None else frozenset())
+    return any(key in query_only for key, _ in spec.options)
 
 
 def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settings: Settings | None = None,
@@ -106,7 +110,7 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settin
                 continue
             cls = solver_class(spec.solver)
             chosen = [s.name for s in group if (s.every_seed or _first_seed(spec, specs))
-                      and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec))]
+                      and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec, cls))]
             if chosen:
                 units.append(Unit(case, spec if settings is None else settings.budgeted(spec, case), tuple(chosen)))
     return units
@@ -177,12 +181,14 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
         else {}
     with blas_threads(cls.blas_threads):
         try:
+            start = time.perf_counter()
             solver = unit.spec.make(unit.case, **options)
             if any(SUITES[s].needs_fit for s in suites) or FIT in todo:
                 report = fit_or_load(solver, settings)
                 if FIT in todo:
                     yield FIT, [{"suite": FIT, **base, "status": "ok", "fit_s": report.seconds,
-                                 "iterations": report.iterations, "loss": report.loss, "message": report.message}]
+                                 "iterations": report.iterations, "loss": report.loss, "message": report.message,
+                                 "work_s": time.perf_counter() - start}]
         except Exception as exc:  # noqa: BLE001 - recorded as rows, the run goes on
             print(f"[swingbench] {unit.label}: {_failure(exc)}", file=sys.stderr)
             traceback.print_exc()
@@ -190,13 +196,15 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
                 yield work, [{"suite": work, **base, "status": _failure(exc)}]
             return
         for suite in suites:
+            start = time.perf_counter()
             try:
                 rows = SUITES[suite].run(solver, unit.case, settings)
             except Exception as exc:  # noqa: BLE001
                 print(f"[swingbench] {unit.label} {suite}: {_failure(exc)}", file=sys.stderr)
                 traceback.print_exc()
                 rows = [{"status": _failure(exc)}]
-            yield suite, [{"suite": suite, **base, "status": "ok", **row} for row in rows]
+            work_s = time.perf_counter() - start
+            yield suite, [{"suite": suite, **base, "status": "ok", **row, "work_s": work_s} for row in rows]
 
 
 def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) -> list[tuple[str, list[dict]]]:

@@ -142,6 +142,8 @@ class AbstractSolver(abc.ABC):
     - `does_work`: False only for the do-nothing adapter that measures the interface itself;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
       mode, a compiled query path);
+    - `QUERY_OPTIONS`: its options that change only how `solve` runs, never what `identify` does
+      (a variant that sets only these is not identified again);
     - `blas_threads`: the BLAS thread count its queries are timed with, when it is not the run's
       (the fastest for the adapter, measured; see the class that sets it);
     - `precision_sweep(rtols)`: the option overrides of the work-precision curve (an adaptive
@@ -158,6 +160,7 @@ class AbstractSolver(abc.ABC):
     does_work: ClassVar[bool] = True
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
+    QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset()
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
         """Option overrides, one dict per point of this adapter's work-precision curve, from the

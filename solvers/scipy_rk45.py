@@ -51,6 +51,7 @@ class ScipyRK45(AbstractSolver):
     SCHEMA = RK45Options
     CONFIGS = TOLERANCE_CONFIGS
     VARIANTS = ({"batch": "stacked"},)
+    QUERY_OPTIONS = frozenset({"batch"})  # `identify` integrates one P1 at a time in either mode
 
     def _fit(self) -> None:
         pass

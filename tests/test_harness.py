@@ -61,9 +61,13 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert set(latency["query"]) == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s",
                                      "50 single points, one call"}
     assert (latency["median_s"] > 0).all()
+    # every row of a unit of work carries that unit's wall time, at least what its queries took
+    timed = ok.groupby("suite")["work_s"]
+    assert (timed.nunique() == 1).all() and timed.first()["latency"] > latency["median_s"].sum()
 
     markdown = write_report(store.rows(), tmp_path, {"threads": 2})
     assert "casadi-cvodes [default]" in markdown and "Skipped or failed" in markdown
+    assert "Wall time of its units of work, minutes: smib-inference " in markdown
     assert "skipped: nothing not installed" in markdown
     assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()
 
@@ -390,6 +394,13 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
     assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]
+    # an adapter's own query options (scipy RK45's batch mode) likewise; diffrax's batch changes
+    # its identification's error control, so its variant identifies
+    specs = [SolverSpec("scipy-rk45", options=(("batch", "stacked"),)), SolverSpec("diffrax", options=(("batch", "vmap"),))]
+    units = {(unit.case.name, unit.spec.solver): list(unit.suites)
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES])}
+    assert ("smib-identification", "scipy-rk45") not in units
+    assert units[("smib-identification", "diffrax")] == ["identification"]
 
 
 def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
