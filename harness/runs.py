@@ -61,6 +61,9 @@ SCALING_CASES = ("wscc9", "ieee39", "case118", "case300", "case1354pegase", "cas
 # PINNs in a scaling run: a fixed budget of Levenberg-Marquardt iterations per time-marching window
 # and no wall-clock limit, so that their preparation cost shows how training grows with N.
 SCALING_PINN_OPTIONS = {"max_iterations": 100, "max_seconds": None}
+# Configs made for large systems (CVODES's Adams, `solvers.casadi_cvodes`): `make bench` omits them,
+# the scaling suite runs them.
+LARGE_SYSTEM_CONFIGS = ("adams",)
 # What one unit of the scaling suite (build, fit, queries of one adapter on one case) may take.
 SCALING_UNIT_LIMITS = Limits(seconds=1800.0, rss_mb=16384.0)
 
@@ -152,9 +155,11 @@ class Settings:
 
     def for_scaling(self) -> Settings:
         """These settings for a run of the scaling suite alone: each unit under
-        `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds)."""
+        `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds), and
+        the configs for large systems (`LARGE_SYSTEM_CONFIGS`) not omitted."""
         return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_seconds={},
-                       pinn_options={**self.pinn_options, **self.scaling_pinn_options})
+                       pinn_options={**self.pinn_options, **self.scaling_pinn_options},
+                       omit_configs=tuple(c for c in self.omit_configs if c not in LARGE_SYSTEM_CONFIGS))
 
     @property
     def quick(self) -> bool:
@@ -174,7 +179,7 @@ QUICK = Settings(
 # SMIB identification 12, of which the second pair 3.8), 30 of them in timed calls (latency and
 # work-precision; a model of them from that run's repeats and medians puts them at 23 min with the
 # 0.25 s and 3 repeats below). The cuts: one seed (--full: five), the
-# two-output configs only when named (--config), 0.25 s of repeats per timing (at least 3: a
+# two-output configs and those for large systems only when named (--config), 0.25 s of repeats per timing (at least 3: a
 # call of 1 ms is timed ~250 times, one of 0.1 s 3 times), a latency query
 # estimated over 10 s skipped (a row says so), on the multi-machine cases the Python-driven
 # adapters sweep three tolerances (the compiled ones all eight: the verdicts compare with them), the
@@ -190,14 +195,15 @@ DEFAULT = Settings(
     latency_budget_s=0.25,
     min_repeats=3,
     max_query_s=10.0,
-    omit_configs=("two-outputs", "paper-two-outputs"),
+    omit_configs=("two-outputs", "paper-two-outputs", *LARGE_SYSTEM_CONFIGS),
     pairs=(PAPER_PAIR,),
     skip_identify_configs=("paper-two-outputs", "two-outputs"),
     network_wp_rtols=(1e-3, 1e-6, 1e-9),
     network_pinn_seconds={"wscc9": 60.0, "kundur4": 60.0, "ieee39": 120.0},
     network_identify_cases=("wscc9",),
 )
-FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0)
+FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0,
+                network_noise_levels=(0.0, 0.01))
 
 
 def default_specs(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import ClassVar
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -28,17 +28,36 @@ except ImportError:  # pragma: no cover - the registry reports the adapter as no
 
 class CVODESOptions(ToleranceOptions):
     threads: PositiveInt = 2
+    method: Literal["bdf", "adams"] = "bdf"
+    newton: Literal["direct", "functional"] = "direct"
+    graph: Literal["auto", "sx", "mx"] = "auto"
 
 
-def swing_dae(case: Case) -> dict:
+# CVODES's options (CasADi's names) for each way of solving the implicit step: "direct", Newton
+# iterations with the exact Jacobian factored by sparse LU (CasADi's default); "functional",
+# fixed-point iterations, no Jacobian (for non-stiff problems, with Adams).
+NEWTON_SCHEMES = {"direct": {}, "functional": {"nonlinear_solver_iteration": "functional"}}
+# graph="auto": scalar expressions (SX) below this many machines, matrix expressions (MX) from it.
+# CVODES's Newton iterations need the Jacobian, which CasADi derives when it builds an integrator:
+# on an SX graph of the dense coupling (~4n^2 scalar nodes) that costs ~n^3, 32 s at 260 machines
+# for each integrator (one per output grid), on the MX graph (four matrix-vector products) 0.1 s.
+# Measured, 4 P1 x 101 times, BDF, rtol 1e-3 / 1e-10 (ms): SMIB 1 / 3 (SX) against 1 / 6 (MX);
+# wscc9 3 / 11 against 2 / 16; kundur4 2 / 10 against 2 / 14; ieee39 6 / 38 against 6 / 28;
+# case118 (54 machines) 57 against 29 at 1e-3; case1354pegase (260) 4.2 s against 3.5 s.
+MX_FROM_MACHINES = 10
+
+
+def swing_dae(case: Case, graph: Literal["sx", "mx"] = "sx") -> dict:
     """The n-machine swing equation of `case` as a CasADi ODE: x = [delta_1..n, omega_1..n] (2n,
     rad, rad/s), parameters p = [P_1..n, m_1..n, d_1..n] (3n, p.u.): every machine's mechanical
     power (`Case.powers` gives it: generator 1's P1, the others' p_m), inertia and damping, so one
     integrator serves every P1 and every trial (m, d) of identification. The coupling (E, G, B,
-    infinite bus) is numeric in the expression: `systems.model.accelerations` on column vectors."""
+    infinite bus) is numeric in the expression: `systems.model.accelerations` on column vectors,
+    as scalar expressions (`graph="sx"`) or matrix ones ("mx"; the same function)."""
     n = case.n
     k = coupling(case).map(ca.DM)  # (n, n) matrices and (n, 1) columns
-    x, p = ca.SX.sym("x", 2 * n), ca.SX.sym("p", 3 * n)
+    sym = {"sx": ca.SX, "mx": ca.MX}[graph].sym
+    x, p = sym("x", 2 * n), sym("p", 3 * n)
     acc = accelerations(k, p[n:2 * n], p[2 * n:], x[:n], x[n:], p[:n],
                         sin=ca.sin, cos=ca.cos, matvec=ca.mtimes)
     return {"x": x, "p": p, "ode": ca.vertcat(x[n:], acc)}
@@ -53,7 +72,11 @@ class CasadiCVODES(AbstractSolver):
     nonzeros of 4n^2 (dP_e/d delta is dense), and CVODES refactors it rarely: measured on a random
     10-machine lossy case, one trajectory to 20 s with 201 outputs, csparse 2.7 ms at rtol 1e-3
     and 68 ms at 1e-10 (3573 steps, 221 factorisations), the dense "lapacklu" 2.8 and 68 ms. The
-    linear algebra is not what a step costs, so the default (sparse) solver stays.
+    linear algebra is not what a step costs there, so the default (sparse) solver stays. At scale
+    it is: on 510 machines a 4 x 101 grid at rtol 1e-3 took 27 s with csparse and 7.1 s with
+    lapacklu. The swing equation is not stiff, and the `adams` config (Adams with fixed-point
+    iterations: no Jacobian at all) took 1.3 s there (0.32 s on 260 machines, against 3.5 s for
+    BDF). Measured with the MX graph (`graph`), 2 threads, one probe each.
 
     `fit()` builds the model and the integrator of the standard grid (0..t_final s, 201 points);
     an integrator is built per distinct output grid and number of P1 values (CasADi fixes the output
@@ -61,12 +84,15 @@ class CasadiCVODES(AbstractSolver):
     Trajectories are evaluated with `map(len(P1), "thread", threads)`.
     Options: rtol, atol (defaults 1e-3, 1e-6: MATLAB ode45's), threads (2), m_bounds, d_bounds
     (p.u., the search box of `identify`, default the case's per-machine boxes; `identify` uses
-    CVODES forward sensitivities for d x / d(m_1..n, d_1..n)).
+    CVODES forward sensitivities for d x / d(m_1..n, d_1..n)); method ("bdf", the default, or
+    "adams"), newton ("direct": Newton iterations with the Jacobian; "functional": fixed-point
+    iterations), graph ("sx", "mx" or "auto", the default: see `MX_FROM_MACHINES`).
     """
 
     name: ClassVar[str] = "casadi-cvodes"
     SCHEMA = CVODESOptions
-    CONFIGS = TOLERANCE_CONFIGS
+    # adams: the non-stiff method at ode45's tolerances, for large systems (see above)
+    CONFIGS = {**TOLERANCE_CONFIGS, "adams": {"method": "adams", "newton": "functional"}}
 
     def _make_caches(self) -> None:
         self._integrators = lru_cache(maxsize=32)(self._build)
@@ -78,8 +104,18 @@ class CasadiCVODES(AbstractSolver):
         self._integrators(tuple(t), 100)
 
     def _integrator(self, times: tuple[float, ...]):
-        opts = {"reltol": self.options["rtol"], "abstol": self.options["atol"], "max_num_steps": 100000}
-        return ca.integrator("cvodes", "cvodes", swing_dae(self.case), 0.0, list(times), opts)
+        o = self.options
+        opts = {"reltol": o["rtol"], "abstol": o["atol"], "max_num_steps": 100000,
+                "linear_multistep_method": o["method"], **NEWTON_SCHEMES[o["newton"]]}
+        return ca.integrator("cvodes", "cvodes", swing_dae(self.case, self.graph), 0.0, list(times), opts)
+
+    @property
+    def graph(self) -> Literal["sx", "mx"]:
+        """The expression graph of the model: the `graph` option, or by the case's size for "auto"."""
+        graph = self.options["graph"]
+        if graph == "auto":
+            return "mx" if self.case.n >= MX_FROM_MACHINES else "sx"
+        return graph
 
     def _build(self, times: tuple[float, ...], n_p1: int):
         return self._integrator(times).map(n_p1, "thread", self.options["threads"])

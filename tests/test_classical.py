@@ -70,6 +70,34 @@ def test_three_machine_lossy_matches_reference(name):
     np.testing.assert_allclose(traj.omega, ref_omega, rtol=0, atol=5e-8)
 
 
+@pytest.mark.parametrize("options", [{"graph": "mx"}, {"method": "adams", "newton": "functional"}],
+                         ids=["mx-graph", "adams"])
+def test_casadi_s_other_graph_and_method_match_the_reference(options):
+    """The matrix-expression model (the default from `MX_FROM_MACHINES` machines) is the same
+    function as the scalar one; Adams with fixed-point iterations (the `adams` config) integrates
+    the same system, at tight tolerances as close to the reference as BDF."""
+    solver = make_solver("casadi-cvodes", THREE, "tight", **options)
+    solver.fit()
+    traj = solver.solve(THREE_T, THREE_P1)
+    ref_delta, ref_omega = reference(THREE, THREE_T, THREE_P1)
+    np.testing.assert_allclose(traj.delta, ref_delta, rtol=0, atol=5e-8)
+    np.testing.assert_allclose(traj.omega, ref_omega, rtol=0, atol=5e-8)
+    if options.get("graph") == "mx":  # the same CVODES run on the same function: equal to rounding
+        sx = make_solver("casadi-cvodes", THREE, "tight", graph="sx")
+        sx.fit()
+        np.testing.assert_allclose(traj.delta, sx.solve(THREE_T, THREE_P1).delta, rtol=0, atol=1e-11)
+
+
+def test_casadi_graph_auto_picks_by_the_number_of_machines():
+    from solvers.casadi_cvodes import MX_FROM_MACHINES
+
+    assert make_solver("casadi-cvodes", THREE).graph == "sx" and THREE.n < MX_FROM_MACHINES
+    assert make_solver("casadi-cvodes", THREE, graph="mx").graph == "mx"
+    assert make_solver("casadi-cvodes", THREE, "adams").options["method"] == "adams"
+    with pytest.raises(ValueError, match="graph"):
+        make_solver("casadi-cvodes", THREE, graph="dense")
+
+
 def _scattered(case, n=100, seed=0):
     rng = np.random.default_rng(seed)
     t = rng.uniform(0.0, case.t_final, n)
@@ -118,11 +146,12 @@ def test_casadi_identifies_every_machine():
     assert max_rel(est.d, THREE.d) < 1e-6
 
 
-def test_casadi_sensitivities_equal_finite_differences():
+@pytest.mark.parametrize("graph", ["sx", "mx"])
+def test_casadi_sensitivities_equal_finite_differences(graph):
     """The forward sensitivities identify uses, unpacked to (P1, time, state, parameter) for all
     2n parameters, against central differences of the integrator (measured 4e-8 relative: the
-    differences' own error at rtol 1e-10)."""
-    solver = make_solver("casadi-cvodes", THREE, "tight")
+    differences' own error at rtol 1e-10), on either expression graph."""
+    solver = make_solver("casadi-cvodes", THREE, "tight", graph=graph)
     solver.fit()
     t, P1, n = THREE_T[1:20], THREE_P1[:3], THREE.n
     G = solver._identifiers(tuple(t), P1.size)

@@ -247,6 +247,11 @@ def test_default_and_full_runs_identify_from_the_papers_data(settings):
     assert settings.pairs[0] == PAPER_PAIR == (0.25, 0.15)
     assert (0, 0.0, "paper ode45") in _runs(SMIB_IDENTIFICATION, settings)
     assert set(DEFAULT.pairs) <= set(FULL.pairs) == {PAPER_PAIR, *IDENTIFICATION_PAIRS}
+    # and a multi-machine case at every noise level the SMIB has (make bench: noise-free only)
+    from systems.cases import CASES
+
+    levels = {noise for _, noise, _ in _runs(CASES["wscc9"], settings)}
+    assert levels == ({0.0} if settings is DEFAULT else set(FULL.noise_levels))
 
 
 def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
