@@ -346,16 +346,18 @@ def work_minutes(rows: list[dict]) -> str:
     """One line: the wall time of the run's units of work (their rows' `work_s`, each unit once),
     by case and in all, in minutes; "" for rows without it (written before it was recorded)."""
     seconds: dict[str, float] = {}
-    seen = set()
+    timed, units = set(), set()
     for row in rows:
         key = unit_key(row)
-        if "work_s" in row and key not in seen:
-            seen.add(key)
+        units.add(key)
+        if row.get("work_s") is not None and key not in timed:
+            timed.add(key)
             seconds[row["case"]] = seconds.get(row["case"], 0.0) + float(row["work_s"])
     if not seconds:
         return ""
     parts = ", ".join(f"{case} {s / 60:.1f}" for case, s in seconds.items())
-    return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all.\n\n"
+    some = "" if timed == units else f" (only {len(timed)} of its {len(units)} units recorded it: older rows have none)"
+    return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all{some}.\n\n"
 
 
 HEADLINE = ("paper", "ladder", "break_even", "accuracy", "identification")

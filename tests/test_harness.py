@@ -456,3 +456,15 @@ def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
         with_options(specs, {"width": 3}, SMIB_INFERENCE)
     with pytest.raises(ValueError, match="batch"):
         with_options(specs, {"batch": "sideways"}, SMIB_INFERENCE)
+
+
+def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
+    from harness.report import work_minutes
+
+    unit = {"suite": "latency", "solver": "a", "config": "default", "variant": "", "seed": -1}
+    rows = [{**unit, "case": "x", "work_s": 60.0}, {**unit, "case": "x", "work_s": 60.0},  # one unit, two rows
+            {**unit, "case": "y", "work_s": 30.0}]
+    assert work_minutes(rows) == "Wall time of its units of work, minutes: x 1.0, y 0.5; 1.5 in all.\n\n"
+    older = {**unit, "solver": "b", "case": "x"}
+    assert "(only 2 of its 3 units recorded it" in work_minutes([*rows, older])
+    assert work_minutes([older]) == ""
