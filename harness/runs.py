@@ -178,8 +178,8 @@ QUICK = Settings(
 # identified a second SMIB pair) all four cases in 68 min (SMIB 12, wscc9 16, kundur4 12, ieee39 16,
 # SMIB identification 12, of which the second pair 3.8), 30 of them in timed calls (latency and
 # work-precision; a model of them from that run's repeats and medians puts them at 23 min with the
-# 0.25 s and 3 repeats below). With every cut below (commit 146a219): 55 min, 1.7 of them compiling
-# numba's cache; units of work SMIB 8.5, wscc9 15.1, kundur4 10.0, ieee39 15.0, SMIB identification
+# 0.25 s and 3 repeats below). With every cut below (commit 146a219): 55 min, ~1.6 of them outside the
+# units (numba's cache, the report); units of work SMIB 8.5, wscc9 15.1, kundur4 10.0, ieee39 15.0, SMIB identification
 # 5.1 min (the report's line). The cuts: one seed (--full: five), the two-output configs and those
 # for large systems only when named (--config), 0.25 s of repeats per timing (at least 3: a call
 # of 1 ms is timed ~250 times, one of 0.1 s 3 times), scipy RK45 identified once (not again for
