@@ -246,7 +246,7 @@ class AbstractSolver(abc.ABC):
         else:
             p1, p_lo, p_hi = _small_vector(P1, nonnegative=False)
             if p1 is None:
-                p1 = check_array("P1", np.atleast_1d(P1))
+                p1 = check_array("P1", P1, promote=True)
                 p_lo, p_hi = float(p1.min()), float(p1.max())
         if self.bounded_domain and not extrapolate:
             self._check_domain(t_hi, p_lo, p_hi)

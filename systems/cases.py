@@ -7,6 +7,7 @@ Nothing here imports the rest of the project; solvers take a `Case`, suites take
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from numbers import Real
@@ -24,6 +25,8 @@ __all__ = [
     "Case",
     "Observations",
     "check_array",
+    "check_number",
+    "per_machine",
     "smib_case",
     "standard_grid",
 ]
@@ -35,7 +38,8 @@ _KIND_NAMES = {"b": "booleans", "U": "strings", "S": "bytes", "c": "complex numb
                "M": "datetimes", "m": "timedeltas", "V": "raw bytes"}
 
 
-def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -> np.ndarray:
+def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False, promote: bool = False
+                ) -> np.ndarray:
     """Return `value` as a float64 array of `ndim` dimensions or raise a ValueError naming `name`.
 
     Rejects non-numeric input, the wrong number of dimensions, empty arrays, NaN/inf and (with
@@ -43,10 +47,15 @@ def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -
     Numeric means integers and floats (Python, numpy, or an object array of them): strings are
     refused even when they spell a number ('0.12'), and so are booleans (True is not 1.0 s or
     1.0 p.u.; the option schemas of `solvers.options` refuse them for numbers too), complex
-    numbers and None. A float64 array costs one dtype check more than `np.asarray`.
+    numbers and None, also inside a list or tuple. With `promote`, one number is a 1-element
+    vector. A float64 array costs one dtype check more than `np.asarray`.
     """
     raw = value
     if type(raw) is not np.ndarray:
+        refused = _non_number_inside(value)
+        if refused is not None:  # np.asarray([0.0, True]) would be float64, the boolean gone
+            raise ValueError(f"{name} must be numeric (integers or floats), got {refused} inside "
+                             f"({_short(value)})")
         try:
             raw = np.asarray(value)
         except (TypeError, ValueError) as exc:  # ragged nesting
@@ -61,6 +70,8 @@ def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -
         arr = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    if promote and arr.ndim == 0:
+        arr = arr.reshape(1)
     if arr.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-D, got shape {arr.shape}")
     if arr.size == 0:
@@ -69,6 +80,48 @@ def check_array(name: str, value, *, ndim: int = 1, nonnegative: bool = False) -
         raise ValueError(f"{name} contains NaN or inf")
     if nonnegative and (arr < 0).any():
         raise ValueError(f"{name} must be >= 0, got min {arr.min()!r}")
+    return arr
+
+
+def _non_number_inside(value) -> str | None:
+    """What a list or tuple (nested to any depth) holds that is no number: 'booleans', 'strings',
+    ...; None when it holds none (or `value` is no list or tuple)."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, (list, tuple)):
+            stack.extend(item)
+        elif isinstance(item, (bool, np.bool_)):
+            return "booleans"
+        elif isinstance(item, (str, bytes)):
+            return "strings" if isinstance(item, str) else "bytes"
+        elif isinstance(item, np.ndarray) and item.dtype.kind not in _NUMERIC_KINDS:
+            return _KIND_NAMES.get(item.dtype.kind, str(item.dtype))
+    return None
+
+
+def check_number(name: str, value) -> float:
+    """Return `value` as a float or raise a ValueError naming `name`: one finite integer or float
+    (Python or numpy); booleans, strings (even '0.5'), None and arrays are refused."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return number
+
+
+def per_machine(name: str, value, n: int) -> np.ndarray:
+    """`value` (a number, or (n,) numbers) as an (n,) positive float64 array, a number setting every
+    machine's; a ValueError naming `name` for anything else (strings, booleans, another length,
+    a value <= 0)."""
+    arr = check_array(name, value, promote=True)
+    if arr.size == 1 and n > 1:
+        arr = np.full(n, arr[0])
+    if arr.size != n:
+        raise ValueError(f"{name} has {arr.size} entries for {n} machine(s)")
+    if (arr <= 0).any():
+        raise ValueError(f"{name} must be > 0, got {arr.tolist()}")
     return arr
 
 
@@ -82,7 +135,7 @@ Matrix = tuple[tuple[float, ...], ...]
 
 
 def _vector(name: str, value, n: int | None = None) -> Vector:
-    arr = check_array(f"Case.{name}", np.atleast_1d(value))
+    arr = check_array(f"Case.{name}", value, promote=True)
     if n is not None and arr.size != n:
         raise ValueError(f"Case.{name} has {arr.size} entries, the case has {n} machines")
     return tuple(float(x) for x in arr)
@@ -158,10 +211,7 @@ class Case:
         for name in ("m_box", "d_box"):
             object.__setattr__(self, name, _boxes(name, getattr(self, name), n))
         for name in ("t_final", "p1_min", "p1_max"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
-                raise ValueError(f"Case.{name} must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, check_number(f"Case.{name}", getattr(self, name)))
         for name in ("m", "d", "E"):
             if min(getattr(self, name)) <= 0:
                 raise ValueError(f"Case.{name} must be > 0, got {getattr(self, name)!r}")
@@ -185,8 +235,7 @@ class Case:
     def with_params(self, m, d, name: str | None = None) -> Case:
         """The same case with other inertias `m` and dampings `d`: (n,) sequences, or numbers that
         set every machine's."""
-        m = tuple(np.broadcast_to(np.asarray(m, float), (self.n,)).tolist())
-        d = tuple(np.broadcast_to(np.asarray(d, float), (self.n,)).tolist())
+        m, d = (tuple(per_machine(f"with_params: {key}", value, self.n).tolist()) for key, value in (("m", m), ("d", d)))
         label = ",".join(f"{x:g}" for x in m), ",".join(f"{x:g}" for x in d)
         return dataclasses.replace(self, m=m, d=d, name=name or f"{self.name}[m={label[0]},d={label[1]}]")
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.sparse import block_diag, coo_matrix, diags
 
-from systems.cases import Case, check_array
+from systems.cases import Case, check_array, per_machine
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
@@ -123,18 +123,6 @@ def bus_indices(net: pandapowerNet, names) -> list[int]:
     return [index[int(name)] for name in names]
 
 
-def _per_machine(name: str, value, n: int) -> np.ndarray:
-    """`value` as an (n,) positive float array (a number sets every entry) or a ValueError."""
-    arr = check_array(name, np.atleast_1d(value))
-    if arr.size == 1 and n > 1:
-        arr = np.full(n, arr[0])
-    if arr.size != n:
-        raise ValueError(f"{name} has {arr.size} entries, machine_buses has {n} machine(s)")
-    if (arr <= 0).any():
-        raise ValueError(f"{name} must be > 0, got {arr.tolist()}")
-    return arr
-
-
 def _positive(name: str, value) -> float:
     """`value` as a positive float or a ValueError naming `name`."""
     arr = check_array(name, value, ndim=0)
@@ -191,10 +179,10 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
     if unknown:
         raise ValueError(f"machine_buses names bus(es) {unknown} that net does not have")
     n = len(buses)
-    H = _per_machine("H", H, n)
-    xd_prime = _per_machine("xd_prime", xd_prime, n)
+    H = per_machine("H", H, n)
+    xd_prime = per_machine("xd_prime", xd_prime, n)
     base = float(net.sn_mva)
-    rating = _per_machine("machine_mva", base if machine_mva is None else machine_mva, n)
+    rating = per_machine("machine_mva", base if machine_mva is None else machine_mva, n)
     f_hz = _positive("f_hz", f_hz)
     damping_per_inertia = _positive("damping_per_inertia", damping_per_inertia)
     elements = _machine_elements(net, buses)

@@ -31,7 +31,7 @@ def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:
     P1 (max error on the SMIB standard grid ~1e-11 rad). Results are cached per (case, t, P1); the
     returned arrays are read-only."""
     t = check_array("t", t, nonnegative=True)
-    P1 = check_array("P1", np.atleast_1d(P1))
+    P1 = check_array("P1", P1, promote=True)
     return _reference(case, t.tobytes(), P1.tobytes())
 
 

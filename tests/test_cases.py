@@ -10,6 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from conftest import THREE_MACHINES
+
 from harness import metrics
 from systems.cases import (
     IDENTIFICATION_PAIRS,
@@ -66,6 +68,35 @@ def test_case_rejects_bad_parameters(field, value):
     case = SMIB_INFERENCE if field != "B" else TWO_MACHINES
     with pytest.raises(ValueError, match=f"Case.{field}"):
         dataclasses.replace(case, **{field: value})
+
+
+@pytest.mark.parametrize("field,value", [("g_inf", (True,)), ("b_inf", [np.True_]), ("m", (0.4, True)),
+                                         ("t_final", True), ("p1_max", np.True_), ("p1_min", "0.1"),
+                                         ("m_box", ((0.02, True),)), ("delta0", ["0.1"])])
+def test_case_refuses_booleans_and_strings_inside_its_fields(field, value):
+    case = SMIB_INFERENCE if field != "m" else TWO_MACHINES
+    with pytest.raises(ValueError, match=f"^Case.{field} must be"):
+        dataclasses.replace(case, **{field: value})
+
+
+@pytest.mark.parametrize("kwargs,message", [
+    ({"m": 0.4, "d": "0.5"}, "with_params: d must be numeric"),
+    ({"m": [0.4, True, 0.3], "d": 0.1}, "with_params: m must be numeric.*booleans"),
+    ({"m": [0.4, 0.3], "d": 0.1}, "with_params: m has 2 entries for 3 machine"),
+    ({"m": 0.4, "d": [0.1, 0.1, 0.1, 0.1]}, "with_params: d has 4 entries for 3 machine"),
+    ({"m": 0.4, "d": -0.1}, "with_params: d must be > 0"),
+])
+def test_with_params_refuses_what_is_no_vector_of_the_case(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        THREE_MACHINES.with_params(**kwargs)
+    assert THREE_MACHINES.with_params(0.3, [0.1, 0.2, 0.3]).d == (0.1, 0.2, 0.3)
+
+
+def test_observations_refuse_booleans_inside_lists():
+    with pytest.raises(ValueError, match="^Observations.t must be numeric.*booleans"):
+        Observations([0.0, True, 2.0], [0.1] * 3, [[0.1]] * 3)
+    with pytest.raises(ValueError, match="^Observations.delta must be numeric.*booleans"):
+        Observations([0.0, 1.0], [0.1] * 2, [[0.1], [True]])
 
 
 def test_p1_range_must_be_ordered():

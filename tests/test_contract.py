@@ -56,6 +56,9 @@ BAD_QUERIES = [
     ("P1", [0.0, 1.0], [[0.1, 0.12]]),
     ("P1", [0.0, 1.0], []),
     ("P1", [0.0, 1.0], "abc"),
+    ("t_query", [0.0, True, 5.0], 0.13),  # np.asarray would make True 1.0 s
+    ("P1", [0.0, 1.0], [0.1, True]),
+    ("P1", [0.0, 1.0], [0.1, "0.12"]),
 ]
 
 
@@ -64,6 +67,14 @@ BAD_QUERIES = [
 def test_bad_queries_raise_value_error_naming_the_argument(fitted_solvers, name, argument, t, P1):
     with pytest.raises(ValueError, match=argument):
         fitted_solvers[name].solve(t, P1)
+
+
+@pytest.mark.parametrize("name", ALL_SOLVERS)
+@pytest.mark.parametrize("argument,t,P1", [("t_query", [1.0, True], [0.1, 0.12]),
+                                           ("P1", [1.0, 2.0], [0.1, np.True_])])
+def test_solve_points_refuses_booleans_inside_lists(fitted_solvers, name, argument, t, P1):
+    with pytest.raises(ValueError, match=f"^{argument} must be numeric.*booleans"):
+        fitted_solvers[name].solve_points(t, P1)
 
 
 @pytest.mark.parametrize("name", ALL_SOLVERS)
