@@ -92,7 +92,7 @@ class CasadiCVODES(AbstractSolver):
     name: ClassVar[str] = "casadi-cvodes"
     SCHEMA = CVODESOptions
     # adams: the non-stiff method at ode45's tolerances, for large systems (see above)
-    CONFIGS = {**TOLERANCE_CONFIGS, "adams": {"method": "adams", "newton": "functional"}}
+    CONFIGS: ClassVar[dict[str, dict]] = {**TOLERANCE_CONFIGS, "adams": {"method": "adams", "newton": "functional"}}
 
     def _make_caches(self) -> None:
         self._integrators = lru_cache(maxsize=32)(self._build)

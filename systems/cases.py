@@ -104,7 +104,7 @@ def check_number(name: str, value) -> float:
     """Return `value` as a float or raise a ValueError naming `name`: one finite integer or float
     (Python or numpy); booleans, strings (even '0.5'), None and arrays are refused."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
+        raise ValueError(f"{name} must be a finite number, got {value!r}")  # noqa: TRY004 - the contract is ValueError
     number = float(value)
     if not math.isfinite(number):
         raise ValueError(f"{name} must be a finite number, got {value!r}")

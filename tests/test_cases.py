@@ -6,11 +6,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import THREE_MACHINES
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
-
-from conftest import THREE_MACHINES
 
 from harness import metrics
 from systems.cases import (
