@@ -1,12 +1,21 @@
 """A call in a fresh Python process, under a wall-clock and a memory limit, with its peak memory.
 
 `call_isolated(fn, *args, limits=...)` pickles (fn, args) to a file, starts
-`python -m harness.isolation IN OUT` in a session of its own, and polls it: past
-`limits.seconds` of wall-clock time, or once the resident memory of the child and its own
-children exceeds `limits.rss_mb`, the whole session is killed and `OverLimit` raised, saying
-which limit and what was reached. Otherwise the child's result (or its exception, raised here)
-comes back with the child's peak resident set size (VmHWM, MiB), which is the peak of everything
-it did: imports, building, training, queries.
+`python -m harness.isolation PARENT IN OUT` in a session of its own (so that a limit kills the
+child's whole process group, whatever it started), and polls it: past `limits.seconds` of
+wall-clock time, or once the resident memory of the child and its own children exceeds
+`limits.rss_mb`, the whole session is killed and `OverLimit` raised, saying which limit and what was
+reached. Otherwise the child's result (or its exception, raised here) comes back with the child's
+peak resident set size (VmHWM, MiB), which is the peak of everything it did: imports, building,
+training, queries.
+
+The child dies with this process, however this one ends: its own session keeps it out of a kill
+of this process's group and out of a terminal's Ctrl-C, so on Linux it asks the kernel for SIGKILL
+when its parent dies (`prctl(PR_SET_PDEATHSIG)`; elsewhere a thread polls for a new parent and
+kills the child's group; the kernel's signal ends the child alone, not processes it started itself,
+which no adapter does), and it ends at once if its parent died before it could ask. The call and
+the result travel in unnamed temporary files (descriptors passed to the child), which the kernel
+frees once both processes have closed them: a run killed with SIGKILL leaves no file behind.
 
 It starts with `subprocess`, not `multiprocessing`, so it also works inside a daemonic worker
 process (joblib's, Dask's). `fn` must be importable (a module-level function) and its arguments
@@ -23,9 +32,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, NamedTuple
 
 __all__ = ["NO_LIMITS", "Limits", "OverLimit", "call_isolated"]
@@ -76,12 +85,14 @@ def call_isolated(fn: Callable[..., Any], *args: Any, limits: Limits = NO_LIMITS
     """`fn(*args)` in a fresh process under `limits`: returns (its result, the child's peak RSS in
     MiB); re-raises the child's exception; raises `OverLimit` when a limit is passed (the child and
     its children are killed) and RuntimeError if the child dies without a result."""
-    with tempfile.TemporaryDirectory(prefix="swingbench-isolated-") as tmp:
-        inp, out = Path(tmp, "call.pkl"), Path(tmp, "result.pkl")
+    # unnamed files (O_TMPFILE, or unlinked at once): nothing on disk outlives both processes
+    with tempfile.TemporaryFile() as inp, tempfile.TemporaryFile() as out:
         # this process's sys.path first: the child unpickles `fn` from the same modules
-        inp.write_bytes(pickle.dumps(list(sys.path)) + pickle.dumps((fn, args)))
-        proc = subprocess.Popen([sys.executable, "-m", "harness.isolation", str(inp), str(out)],
-                                start_new_session=True)
+        inp.write(pickle.dumps(list(sys.path)) + pickle.dumps((fn, args)))
+        inp.flush()
+        fds = (inp.fileno(), out.fileno())
+        proc = subprocess.Popen([sys.executable, "-m", "harness.isolation", str(os.getpid()), *map(str, fds)],
+                                start_new_session=True, pass_fds=fds)
         start, peak_seen = time.perf_counter(), 0.0
         try:
             while proc.poll() is None:
@@ -100,9 +111,12 @@ def call_isolated(fn: Callable[..., Any], *args: Any, limits: Limits = NO_LIMITS
             if proc.poll() is None:
                 _kill(proc)
             raise
-        if not out.exists():
-            raise RuntimeError(f"the isolated process ended with exit code {proc.returncode} and no result")
-        ok, value, peak_mb = pickle.loads(out.read_bytes())
+        out.seek(0)  # the child wrote from offset 0 of the description both share
+        payload = out.read()
+    try:
+        ok, value, peak_mb = pickle.loads(payload)
+    except (EOFError, pickle.UnpicklingError):  # none, or cut short by the child's death
+        raise RuntimeError(f"the isolated process ended with exit code {proc.returncode} and no result") from None
     if not ok:
         raise value
     return value, peak_mb
@@ -124,10 +138,48 @@ def _peak_rss_mib() -> float:
     return maxrss / 2**20 if sys.platform == "darwin" else maxrss / 1024
 
 
-def _child(inp: str, out: str) -> None:
-    with open(inp, "rb") as f:
+# prctl(2) option: the signal this process gets when the thread that started it ends (the thread in
+# `call_isolated`, which waits for the child: its end is the parent's)
+PR_SET_PDEATHSIG = 1
+
+
+def _signal_on_parent_death(sig: int) -> bool:
+    """Ask the kernel for `sig` when this process's parent ends (Linux); False where it cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        return ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, sig, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _kill_group_when_orphaned(parent: int, poll_s: float = 0.5) -> None:
+    """Poll for a parent other than `parent` (it died; this process was adopted), then kill this
+    process's group: this process and what it started."""
+    while os.getppid() == parent:
+        time.sleep(poll_s)
+    os.killpg(os.getpgrp(), signal.SIGKILL)
+
+
+def _die_with(parent: int) -> None:
+    """End this process when `parent` ends; at once if it already has (before the kernel was asked,
+    the death went unseen). The kernel's signal comes even while Python is busy in C code; the
+    polling thread is the fallback where there is none."""
+    if not _signal_on_parent_death(signal.SIGKILL):
+        threading.Thread(target=_kill_group_when_orphaned, args=(parent,), daemon=True).start()
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _child(parent: int, inp_fd: int, out_fd: int) -> None:
+    _die_with(parent)
+    with os.fdopen(inp_fd, "rb") as f:
+        f.seek(0)
         sys.path[:] = pickle.load(f)
         fn, args = pickle.load(f)
+    os.set_inheritable(out_fd, False)  # not for what `fn` starts
     try:
         result = (True, fn(*args))
     except Exception as exc:  # noqa: BLE001 - handed to the parent, which raises it
@@ -137,8 +189,9 @@ def _child(inp: str, out: str) -> None:
         payload = pickle.dumps((*result, peak_mb))
     except Exception:  # noqa: BLE001 - an unpicklable exception: its text instead
         payload = pickle.dumps((False, RuntimeError(f"{type(result[1]).__name__}: {result[1]}"), peak_mb))
-    Path(out).write_bytes(payload)
+    with os.fdopen(out_fd, "wb") as f:
+        f.write(payload)
 
 
 if __name__ == "__main__":
-    _child(*sys.argv[1:3])
+    _child(*map(int, sys.argv[1:4]))

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +62,45 @@ def test_a_call_past_its_time_is_killed_with_a_message():
 def test_a_call_past_its_memory_is_killed_with_a_message():
     with pytest.raises(OverLimit, match=r"out of memory: \d+ MiB resident > the limit 150 MiB"):
         call_isolated(_allocate, 300, limits=Limits(rss_mb=150.0))
+
+
+def _running(pid: int) -> bool:
+    """Not ended and not a zombie (an ended process its new parent has not reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+# A child in a session of its own (as `call_isolated` starts one) with only the polling fallback, and
+# a process it started; the child prints both pids, and its parent waits for it (until killed).
+CHILD = """import os, subprocess, sys, threading, time
+from harness.isolation import _kill_group_when_orphaned
+grandchild = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+threading.Thread(target=_kill_group_when_orphaned, args=(os.getppid(), 0.05), daemon=True).start()
+print(os.getpid(), grandchild.pid, flush=True)
+time.sleep(60)
+"""
+PARENT = f"""import subprocess, sys
+subprocess.Popen([sys.executable, "-c", {CHILD!r}], start_new_session=True).wait()
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads processes from /proc")
+def test_without_the_kernel_s_signal_an_orphaned_child_kills_its_group():
+    with subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True,
+                          cwd=Path(__file__).parents[1]) as parent:
+        pids = [int(pid) for pid in parent.stdout.readline().split()]
+        try:
+            assert len(pids) == 2 and all(map(_running, pids))
+            parent.kill()
+            parent.wait()
+            deadline = time.monotonic() + 5
+            while any(map(_running, pids)) and time.monotonic() < deadline:
+                time.sleep(0.02)
+            assert not any(map(_running, pids))
+        finally:
+            parent.kill()
+            for pid in filter(_running, pids):
+                os.kill(pid, signal.SIGKILL)
