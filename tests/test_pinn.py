@@ -300,8 +300,11 @@ def test_a_model_recorded_as_another_case_does_not_load(fitted, tmp_path):
 
     wscc9 = CASES["wscc9"]
     _, meta = fitted.save(tmp_path / "model")
-    _record_case(meta, wscc9)
     solver = make_solver(fitted.name, wscc9, threads=1)
+    with pytest.raises(ValueError, match=r"saved for case 'smib-inference', this solver has case 'wscc9' "
+                                         r"\(fields that differ: name, m, d, delta0, "):
+        solver.load(tmp_path / "model")  # as saved: its case record is not wscc9
+    _record_case(meta, wscc9)
     with pytest.raises(ValueError) as info:
         solver.load(tmp_path / "model")
     assert str(info.value) == f"{meta}: trained for 1 machine, case wscc9 has 3"
