@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import THREE_MACHINES
 
 from harness import model_cache
 from harness.model_cache import QUERY_ONLY_OPTIONS, cache_key, store_cached
@@ -87,6 +88,17 @@ def _renamed(entry: Entry) -> None:
         path.replace(path.with_name(entry.base.name + path.name[len(key):]))
 
 
+def _other_case_recorded(entry: Entry) -> None:
+    """The network of another case's data (SMIB_IDENTIFICATION's P1 range, the same shapes) in the
+    .json, the .fit.json re-recorded over it: only the model's own check is left."""
+    info = json.loads(entry.json.read_text())
+    other = spec.Architecture.of(entry.solver.pinn_config, SMIB_IDENTIFICATION)
+    entry.json.write_text(json.dumps({**info, "architecture": other.to_json()}))
+    record = json.loads(entry.fit.read_text())
+    record["files"][entry.json.name] = model_cache._sha256(entry.json)
+    entry.fit.write_text(json.dumps(record))
+
+
 GARBAGE = bytes(range(256)) * 4
 # damage(entry) and (the file the line names, a word it says)
 DAMAGES = {
@@ -101,6 +113,7 @@ DAMAGES = {
     "missing fit.json": (lambda e: e.fit.unlink(), "fit", "missing"),
     "missing npz": (lambda e: e.npz.unlink(), "npz", "missing"),
     "entry of other options": (_renamed, "fit", "records the entry"),
+    "network of another case, fit.json re-recorded": (_other_case_recorded, "json", "P1 range"),
 }
 
 
@@ -263,6 +276,35 @@ def test_load_model_reads_what_save_model_wrote_and_version_1_files(saved):
     with pytest.raises(FileNotFoundError, match="no such model file") as info:
         spec.load_model(npz)
     assert str(info.value).startswith(str(npz))
+
+
+def _save_mismatched(tmp_path: Path, what: str) -> tuple[Path, Path]:
+    """A model whose networks are not those of its config for the case it records."""
+    three = THREE_MACHINES
+    config = spec.PinnConfig(hidden_layers=1, width=4, id_hidden_layers=1, id_width=3)
+    arch = spec.Architecture.of(config, three)
+    theta, windows, ident = spec.init_theta(arch, 0), None, None
+    if what == "identification":  # a SMIB's identification beside a three-machine network
+        id_arch = spec.Architecture.of(config, CASE, identification=True)
+        ident = {"m": 0.3, "d": 0.1, "arch": id_arch, "theta": spec.init_theta(id_arch, 1)}
+    else:  # windows of 5 s for a network of 2.5 s windows
+        config = replace(config, window=2.5)
+        arch = spec.Architecture.of(config, three)
+        windows = np.array([0.0, 5.0, 10.0])
+        theta = np.stack([spec.init_theta(arch, 0), spec.init_theta(arch, 0, window=1)])
+    return spec.save_model(tmp_path / "model", solver="test", config=config, case=three, arch=arch,
+                           theta=theta, windows=windows, identification=ident)
+
+
+@pytest.mark.parametrize("what, says", [
+    ("identification", "identification of 1 machine (m and d), case three-lossy has 3"),
+    ("windows", "windows up to 5.0 s long, the window network covers 2.5 s"),
+])
+def test_load_model_refuses_networks_not_of_the_case_it_records(tmp_path, what, says):
+    _, meta = _save_mismatched(tmp_path, what)
+    with pytest.raises(CorruptModelError) as info:
+        spec.load_model(meta)
+    assert str(info.value).startswith(f"{meta}: ") and says in str(info.value)
 
 
 def test_save_model_replaces_a_file_whole_or_not_at_all(saved, monkeypatch):

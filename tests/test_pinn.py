@@ -4,6 +4,9 @@ two-machine system. Small networks and budgets throughout."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 
@@ -282,6 +285,50 @@ def test_save_load_round_trip_across_backends(tmp_path, source, target):
     np.testing.assert_array_equal(loaded.identification["d"], ident.d)
     with pytest.raises(ValueError, match="case"):
         make_solver(target, SMIB_IDENTIFICATION, threads=1).load(tmp_path / "model")
+
+
+def _record_case(meta, case) -> None:
+    """Make the .json name `case`, as a reviewer did: the weights' hash covers the .npz only."""
+    info = json.loads(meta.read_text())
+    meta.write_text(json.dumps({**info, "case": dataclasses.asdict(case)}))
+
+
+def test_a_model_recorded_as_another_case_does_not_load(fitted, tmp_path):
+    """A SMIB model whose .json names wscc9 is refused by a wscc9 adapter (it would answer one
+    machine's angles from the SMIB's start): the message names the file and the machine counts."""
+    from systems.cases import CASES
+
+    wscc9 = CASES["wscc9"]
+    _, meta = fitted.save(tmp_path / "model")
+    solver = make_solver(fitted.name, wscc9, threads=1)
+    with pytest.raises(ValueError, match=r"saved for case 'smib-inference', this solver has case 'wscc9' "
+                                         r"\(fields that differ: name, m, d, delta0, "):
+        solver.load(tmp_path / "model")  # as saved: its case record is not wscc9
+    _record_case(meta, wscc9)
+    with pytest.raises(ValueError) as info:
+        solver.load(tmp_path / "model")
+    assert str(info.value) == f"{meta}: trained for 1 machine, case wscc9 has 3"
+    assert not solver.fitted
+
+
+@pytest.mark.parametrize("other, what", [
+    (SMIB_IDENTIFICATION, "P1 range (p.u.) (0.08, 0.18), expected (0.1, 0.18)"),
+    (dataclasses.replace(CASE, name="smib-other-start", delta0=(0.3,)),
+     "initial angles delta0 (rad) (0.1,), expected (0.3,)"),
+    (dataclasses.replace(CASE, name="smib-longer", t_final=30.0), "t range (s) (0.0, 20.0), expected (0.0, 30.0)"),
+], ids=["p1-range", "initial-angle", "horizon"])
+def test_a_model_recorded_as_a_case_of_other_data_does_not_load(fitted, tmp_path, other, what):
+    """A model recorded as a case of as many machines but other data (what its network was
+    normalised over or starts from) is refused, naming the file and what differs."""
+    _, meta = fitted.save(tmp_path / "model")
+    _record_case(meta, other)
+    solver = make_solver(fitted.name, other, threads=1)
+    with pytest.raises(ValueError) as info:
+        solver.load(tmp_path / "model")
+    message = str(info.value)
+    assert message.startswith(f"{meta}: not the network of its config for case {other.name}: ")
+    assert what in message and "\n" not in message
+    assert not solver.fitted
 
 
 # ---- training and identification ------------------------------------------------------------------
@@ -660,8 +707,6 @@ def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatc
 def test_marching_save_load_round_trip(marched, target, tmp_path):
     """All windows in one model file (format version 3, the window edges in the .json): loaded by
     either backend they answer the same; the sha256 covers every window."""
-    import json
-
     from solvers.pinn.spec import CorruptModelError
 
     _need(target)

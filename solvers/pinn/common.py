@@ -446,10 +446,16 @@ class PinnSolver(AbstractSolver):
 
     def load(self, path) -> PinnSolver:
         """Load what either backend saved at `path` (its config replaces this solver's config
-        fields; threads, progress and query stay) and return this solver, fitted."""
+        fields; threads, progress and query stay) and return this solver, fitted. A ValueError
+        naming the file when the model is not of this solver's case: its case record differs, or
+        (`spec.load_model`, `spec.check_model_case`) its networks are not those of its config for
+        the case it records (machines, initial state, P1 and t ranges, window edges)."""
         saved = spec.load_model(path)
         if saved["case"] != self.case:
-            raise ValueError(f"{path}: saved for case {saved['case']!r}, this solver has {self.case!r}")
+            differ = [f.name for f in dataclasses.fields(self.case)
+                      if getattr(saved["case"], f.name) != getattr(self.case, f.name)]
+            raise ValueError(f"{path}: saved for case {saved['case'].name!r}, this solver has case "
+                             f"{self.case.name!r} (fields that differ: {', '.join(differ)})")
         self.options.update(saved["config"].to_json())
         self.pinn_config = saved["config"]
         self._prepare_backend()

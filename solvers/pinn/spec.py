@@ -47,6 +47,7 @@ __all__ = [
     "PinnConfig",
     "PinnConfigSchema",
     "Problem",
+    "check_model_case",
     "forward_problem",
     "identification_problem",
     "init_theta",
@@ -538,7 +539,8 @@ def _paths(path) -> tuple[Path, Path]:
 
 class CorruptModelError(ValueError):
     """A saved model that cannot be used as it is: unreadable, incomplete, of another format
-    version, inconsistent with itself or with non-finite weights. The message starts with the file."""
+    version, inconsistent with itself (its networks not those of its config for its case: see
+    `check_model_case`) or with non-finite weights. The message starts with the file."""
 
 
 def weights_sha256(arrays: Mapping[str, np.ndarray]) -> str:
@@ -654,6 +656,67 @@ def _machine_values(meta: Path, ident: dict, n: int) -> tuple[np.ndarray, np.nda
     return values[0], values[1]
 
 
+def _short(values) -> str:
+    """A tuple or number for a one-line message (floats in full: they differ in any digit), at most
+    6 entries of a long tuple."""
+    if isinstance(values, tuple):
+        text = ", ".join(map(repr, values[:6]))
+        return f"({text}{', ...' if len(values) > 6 else ''}{',' if len(values) == 1 else ''})"
+    return repr(values)
+
+
+# The fields of an architecture a message names, under its label (the machine count is checked first)
+_ARCH_FIELDS = (("layer sizes", ("sizes",)), ("t range (s)", ("t_lo", "t_hi")),
+                ("P1 range (p.u.)", ("p_lo", "p_hi")), ("hard_ic", ("hard_ic",)),
+                ("initial angles delta0 (rad)", ("delta0",)), ("initial speeds omega0 (rad/s)", ("omega0",)),
+                ("extra parameters", ("n_extra",)))
+
+
+def _arch_differences(arch: Architecture, expected: Architecture) -> list[str]:
+    """'label got, expected want' for each field of `arch` that differs from `expected`."""
+    out = []
+    for label, fields in _ARCH_FIELDS:
+        got, want = ([getattr(a, name) for name in fields] for a in (arch, expected))
+        if got != want:
+            got, want = (values[0] if len(fields) == 1 else tuple(values) for values in (got, want))
+            out.append(f"{label} {_short(got)}, expected {_short(want)}")
+    return out
+
+
+def check_model_case(record: Mapping, case: Case, file) -> None:
+    """Raise `CorruptModelError` starting with `file` unless the networks of `record` (what
+    `load_model` returns) are those its config makes for `case`: the forward architecture equal to
+    `Architecture.of(config, case)` (machines, layers, the t and P1 ranges it normalises over, the
+    initial state built into its output), time-marching windows no longer than the window network's
+    t range, and an identification network for case.n machines (its m, d of that length), of the
+    config's layers and identification horizon, starting from the case's initial state, over a P1
+    range that covers the case's. The weights' shapes are checked against the architecture by
+    `load_model`. A few comparisons of short tuples: cheap."""
+    config, arch, windows = record["config"], record["arch"], record["windows"]
+    if arch.machines != case.n:
+        raise CorruptModelError(f"{file}: trained for {arch.machines} machine{'s' * (arch.machines != 1)}, "
+                                f"case {case.name} has {case.n}")
+    problems = _arch_differences(arch, Architecture.of(config, case))
+    longest = None if windows is None else float(np.diff(windows).max())
+    if longest is not None and longest > arch.t_hi * (1 + 1e-9):  # `window_edges`' last window may overrun by less
+        problems.append(f"windows up to {longest!r} s long, the window network covers {arch.t_hi!r} s")
+    ident = record["identification"]
+    if ident is not None:
+        id_arch = ident["arch"]
+        if id_arch.machines != case.n or ident["m"].shape != (case.n,) or ident["d"].shape != (case.n,):
+            raise CorruptModelError(f"{file}: identification of {ident['m'].size} machine"
+                                    f"{'s' * (ident['m'].size != 1)} (m and d), case {case.name} has {case.n}")
+        # its P1 range is the case's and the observations' together (`identification_p_range`)
+        expected = Architecture.of(config, case, identification=True, p_range=(id_arch.p_lo, id_arch.p_hi))
+        problems += [f"identification {text}" for text in _arch_differences(id_arch, expected)]
+        if id_arch.p_lo > case.p1_min or id_arch.p_hi < case.p1_max:
+            problems.append(f"identification P1 range ({id_arch.p_lo!r}, {id_arch.p_hi!r}) p.u. does not "
+                            f"cover the case's ({case.p1_min!r}, {case.p1_max!r})")
+    if problems:
+        raise CorruptModelError(f"{file}: not the network of its config for case {case.name}: "
+                                + "; ".join(problems))
+
+
 def load_model(path) -> dict:
     """Read what `save_model` wrote: a dict with config (PinnConfig), case (Case), arch
     (Architecture), theta (float64 (n_params,), or (W, n_params) for a time-marching model),
@@ -661,7 +724,9 @@ def load_model(path) -> dict:
     theta), saved_by. Raises FileNotFoundError for a missing file and `CorruptModelError` for one
     that is unreadable, of another format version, incomplete, of the wrong shapes, not the weights
     its .json records (`weights_sha256`, format versions 2 and 3: every array, each window's
-    included) or non-finite; each message starts with the file."""
+    included), non-finite, or whose networks are not those of its config for the case it records
+    (`check_model_case`: the .json is not covered by the weights' hash, so an edited case record
+    must not make another case's model load); each message starts with the file."""
     npz, meta = _paths(path)
     info = _read_info(meta)
     arrays = _read_arrays(npz)
@@ -688,5 +753,7 @@ def load_model(path) -> dict:
         if not np.isfinite(array).all():
             raise CorruptModelError(f"{npz}: {name!r} has {int(array.size - np.isfinite(array).sum())} "
                                     "non-finite weights")
-    return {"config": config, "case": case, "arch": arch, "theta": theta, "windows": windows,
-            "identification": identification, "saved_by": info.get("saved_by")}
+    record = {"config": config, "case": case, "arch": arch, "theta": theta, "windows": windows,
+              "identification": identification, "saved_by": info.get("saved_by")}
+    check_model_case(record, case, meta)
+    return record
