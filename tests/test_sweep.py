@@ -149,6 +149,38 @@ def test_cli_errors_are_system_exits(tmp_path):
         _cli(str(spec), "--workers", "0")
 
 
+def test_a_bad_spec_is_one_line_and_exit_status_2(tmp_path, capsys):
+    from harness.cli import main
+
+    spec = _write(tmp_path, {"solver": "casadi-cvodes", "grid": {"bogus": [1]}})
+    with pytest.raises(SystemExit) as info:
+        main(["sweep", str(spec), "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"swingbench sweep: {spec}: 'grid': unknown option 'bogus'")
+    assert "Traceback" not in captured.err and not (tmp_path / "out").exists()
+
+
+STEP_ON_TWO_HORIZONS = {"solver": "numba-rk", "config": "rk4", "cases": ["smib-inference", "wscc9"],
+                        "grid": {"dt": [0.1, 15]}}  # 15 s: within the SMIB's 20 s, past wscc9's 10 s
+
+
+def test_a_grid_value_invalid_on_one_case_only_is_refused_before_any_run(tmp_path, capsys):
+    if SOLVERS.get("numba-rk") is None:
+        pytest.skip("numba is not installed")
+    with pytest.raises(ValueError) as info:
+        sweep.parse_spec(STEP_ON_TWO_HORIZONS)
+    assert str(info.value) == ("'grid' point dt=15 on case wscc9: numba-rk: option dt must be <= t_final = "
+                               "10.0 s, the horizon of case wscc9, got 15.0")
+    spec = _write(tmp_path, STEP_ON_TWO_HORIZONS)
+    for extra in (["--dry-run"], []):
+        with pytest.raises(SystemExit, match="'grid' point dt=15 on case wscc9") as info:
+            _cli(str(spec), *extra, "--out", str(tmp_path / "out"))
+        assert info.value.code == 2
+    assert capsys.readouterr().out == "" and not (tmp_path / "out").exists()
+
+
 def test_help_documents_the_format(capsys):
     with pytest.raises(SystemExit) as info:
         _parser().parse_args(["sweep", "--help"])
