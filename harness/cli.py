@@ -1,7 +1,9 @@
 """Command line: `swingbench run` measures, `swingbench report DIR` re-renders tables from CSV rows.
 
-Bad input, found before anything is measured, exits with status 2 and one line on stderr, no
-traceback (`harness.usage.UsageError`); Ctrl-C with 130."""
+Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
+some failed (one line names them and where their rows are) or were lost (`harness.runner.outcome`);
+2 for bad input, found before anything is measured (`harness.usage.UsageError`: one line on
+stderr, no traceback); 130 on Ctrl-C."""
 
 from __future__ import annotations
 
@@ -110,7 +112,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness import executors
     from harness.isolation import Limits
     from harness.report import metadata, write_report
-    from harness.runner import check_units, execute, interrupted_message, open_results, plan
+    from harness.runner import check_units, execute, interrupted_message, open_results, outcome, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
@@ -165,8 +167,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
         with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
-            execute(units, settings, store, executor, progress=progress,
-                    done=contents.completed if contents else None)  # resume prepared
+            counts = execute(units, settings, store, executor, progress=progress,
+                             done=contents.completed if contents else None)  # resume prepared
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130
@@ -178,7 +180,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         update_readme(args.update_readme, headline_markdown(rows, meta), args.out)
     print(f"[swingbench] wrote {args.out}/", file=sys.stderr)
-    return 0
+    return outcome(rows, store.path, counts["lost"])
 
 
 def _read_rows(store) -> list[dict]:

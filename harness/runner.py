@@ -6,7 +6,8 @@ before anything is measured, so that an option value invalid on one of the cases
 at once. `execute` skips the units of work (a suite of a unit, or its fit) whose completion the
 store already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.executors`) and records each unit of work as it completes, with its rows in one write
-(`RowStore.record`). Failures and missing dependencies are rows; the run goes on.
+(`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
+says afterwards, in one line, which units failed, and gives the command's exit status.
 """
 
 from __future__ import annotations
@@ -31,13 +32,13 @@ from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key
 from harness.suites import SUITES, Suite
 from harness.timing import blas_threads, pinned_threads
-from harness.usage import UsageError
+from harness.usage import EXIT_FAILED, UsageError
 from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
 from systems.cases import Case
 
-__all__ = ["FIT", "Unit", "check_units", "execute", "fit_or_load", "interrupted_message", "open_results", "plan",
-           "run_suites", "run_unit"]
+__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "interrupted_message",
+           "open_results", "outcome", "plan", "run_suites", "run_unit"]
 
 FIT = "fit"  # the unit of work that records a trained (or built) adapter's preparation cost
 
@@ -252,12 +253,21 @@ def _progress_bar(total: int, enabled: bool | None):
     return tqdm(total=total, unit="work", file=sys.stderr, dynamic_ncols=True)
 
 
+def failed(row: dict) -> bool:
+    """Whether `row` records a failure: a status that is neither "ok" nor a declared skip
+    ("skipped: ...": a missing dependency, a unit out of time or memory, a query the settings do
+    not measure), e.g. "failed: SolveError: ..."."""
+    status = str(row.get("status"))
+    return status != "ok" and not status.startswith("skipped")
+
+
 def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor=None,
             progress: bool | None = None, done: set[tuple] | None = None) -> dict[str, int]:
     """Run every unit of work of `units` not in `done` (keys of completed units, e.g. from
     `RowStore.prepare_resume`) on `executor` (default: this process, `harness.executors.inline`)
-    and record each as it completes. Returns counts of units of work: {"ok", "failed", "lost"}
-    (lost: the executor broke before returning them; nothing is recorded, `--resume` runs them)."""
+    and record each as it completes. Returns counts of units of work: {"ok", "skipped", "failed",
+    "lost"} (failed: a row of it `failed`; skipped: none failed, some declared a skip; lost: the
+    executor broke before returning them; nothing is recorded, `--resume` runs them)."""
     from harness import executors
 
     done = set() if done is None else done
@@ -266,7 +276,7 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         todo = tuple(w for w in unit.works() if unit.key(w) not in done)
         if todo:
             jobs.append((unit, todo))
-    counts = {"ok": 0, "failed": 0, "lost": 0}
+    counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
     bar = _progress_bar(sum(len(todo) for _, todo in jobs), progress)
     try:
         for unit, work, rows in (executor or executors.inline)(jobs, settings):
@@ -274,7 +284,8 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
                 counts["lost"] += 1
             else:
                 store.record(unit.work_key(work), rows)
-                counts["ok" if all(r.get("status") == "ok" for r in rows) else "failed"] += 1
+                counts["failed" if any(map(failed, rows)) else
+                       "ok" if all(r.get("status") == "ok" for r in rows) else "skipped"] += 1
             if bar:
                 bar.set_description(f"{unit.label} {work}")
                 bar.update(1)
@@ -282,6 +293,46 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         if bar:
             bar.close()
     return counts
+
+
+def _unit_label(row: dict) -> str:
+    """`Unit.label` of the unit a row belongs to, from the row's columns."""
+    seed = row.get("seed")
+    extra = "".join(f",{part}" for part in (row.get("variant") or "", "" if seed in (None, -1) else f"seed={seed}")
+                    if part)
+    return f"{row.get('solver')}[{row.get('config')}{extra}] {row.get('case')}"
+
+
+def failure_summary(rows: Iterable[dict], where: Path, shown: int = 5) -> str | None:
+    """One line on the units of work in `rows` that `failed` (declared skips are not failures): how
+    many, in which units (solver, config, variant and case; the first `shown` of them) and which
+    of their units of work, and `where` their rows are. None when nothing failed."""
+    works: dict[str, list[str]] = {}
+    for row in rows:
+        if failed(row):
+            suites = works.setdefault(_unit_label(row), [])
+            if row.get("suite") not in suites:
+                suites.append(row.get("suite"))
+    if not works:
+        return None
+    listed = "; ".join(f"{label} ({', '.join(map(str, suites))})" for label, suites in list(works.items())[:shown])
+    more = f"; and {len(works) - shown} more unit(s)" if len(works) > shown else ""
+    return (f"{sum(map(len, works.values()))} unit(s) of work failed, in {len(works)} unit(s): {listed}{more}; "
+            f"their rows, with the reason in 'status', are in {where}")
+
+
+def outcome(rows: list[dict], where: Path, lost: int = 0) -> int:
+    """The exit status of a command that measured: 0 when no unit of work in `rows` failed and
+    none was lost; else one line on stderr for each (`failure_summary`; lost units are run by
+    --resume) and `EXIT_FAILED`. `rows` are those of the whole output folder: a resumed run's
+    earlier failures are results of the run too, kept, not run again."""
+    summary = failure_summary(rows, where)
+    if summary:
+        print(f"[swingbench] {summary}", file=sys.stderr)
+    if lost:
+        print(f"[swingbench] {lost} unit(s) of work lost to the executor, not recorded: add --resume to run them",
+              file=sys.stderr)
+    return EXIT_FAILED if summary or lost else 0
 
 
 def run_suites(

@@ -38,6 +38,10 @@ Executors (`harness.executors`, only the executor differs): by default joblib's 
 cluster (its workers should run 1 thread each, e.g. `dask worker ADDRESS --nthreads 1`, and have
 swingbench installed), with --dask-local a LocalCluster of --workers processes, 1 thread each.
 
+Exit status: 0 when every run was measured (a declared skip counts as measured), 1 when a unit of
+work failed (one line names the runs and where their rows are) or the executor lost some, 2 for a
+bad spec or option, 130 on Ctrl-C.
+
 Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
 finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
 sweep.md (per grid point and case: median and [min, max] over seeds of the relative L2 error of delta
@@ -387,8 +391,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """`swingbench sweep`: 0 when every run was measured (failed runs are rows), 1 if the executor
-    lost some (`--resume` runs them), 2 (a `UsageError`) for a bad spec, 130 on Ctrl-C."""
+    """`swingbench sweep`: 0 when every run was measured, 1 when a unit of work failed (its rows
+    say why; one line names them) or the executor lost some (`--resume` runs them), 2 (a
+    `UsageError`) for a bad spec, 130 on Ctrl-C."""
     from harness.usage import UsageError
 
     if args.workers < 1:
@@ -406,7 +411,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     from harness import executors
     from harness.report import metadata
-    from harness.runner import execute, interrupted_message, open_results
+    from harness.runner import execute, interrupted_message, open_results, outcome
     from harness.store import atomic_write
 
     store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()})
@@ -430,6 +435,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         return 130
     markdown = write_outputs(store, args.out, meta)
     print(markdown)
-    print(f"[swingbench sweep] {counts['ok']} ok, {counts['failed']} failed, {counts['lost']} lost to "
-          f"the executor; wrote {args.out}/", file=sys.stderr)
-    return 1 if counts["lost"] else 0
+    print(f"[swingbench sweep] units of work: {counts['ok']} ok, {counts['skipped']} skipped, {counts['failed']} "
+          f"failed, {counts['lost']} lost to the executor; wrote {args.out}/", file=sys.stderr)
+    return outcome(store.rows(), store.path, counts["lost"])

@@ -128,10 +128,10 @@ def test_a_reader_does_not_create_the_folder(tmp_path):
 
 def test_resuming_a_finished_run_changes_nothing(tmp_path, counting):
     store = RowStore(tmp_path)
-    assert _run(store) == {"ok": 3, "failed": 0, "lost": 0}
+    assert _run(store) == {"ok": 3, "skipped": 0, "failed": 0, "lost": 0}
     before = store.path.read_bytes()
     assert [r["suite"] for r in store.rows()] == ["fit", "one", "one", "two"]
-    assert _run(store, resume=True) == {"ok": 0, "failed": 0, "lost": 0}
+    assert _run(store, resume=True) == {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
     assert store.path.read_bytes() == before and counting == ["one", "two"] and Counting.fits == 1
 
 
@@ -148,7 +148,7 @@ def test_resume_runs_only_what_is_not_recorded_and_never_repeats_the_fit_row(tmp
 def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
     monkeypatch.setattr(Counting, "_fit", lambda self: 1 / 0)
     store = RowStore(tmp_path)
-    assert _run(store) == {"ok": 0, "failed": 3, "lost": 0}
+    assert _run(store) == {"ok": 0, "skipped": 0, "failed": 3, "lost": 0}
     assert {r["status"] for r in store.rows()} == {"failed: ZeroDivisionError: division by zero"}
     before = store.path.read_bytes()
     _run(store, resume=True)
@@ -262,3 +262,23 @@ def test_bad_input_is_one_line_on_stderr_and_exit_status_2(argv, tmp_path, count
     err = captured.err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("swingbench run: ") and "Traceback" not in captured.err
     assert counting == [] and not (tmp_path / "out").exists()
+
+
+def test_a_failed_unit_exits_1_with_one_line_naming_it_and_its_rows(tmp_path, counting, monkeypatch, capsys):
+    argv = [*RUN, "--case", "smib-inference", "--out", str(tmp_path)]
+    monkeypatch.setattr(Counting, "_fit", lambda self: 1 / 0)
+    assert main(argv) == 1
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last == (f"[swingbench] 2 unit(s) of work failed, in 1 unit(s): counting[default] smib-inference "
+                    f"(fit, one); their rows, with the reason in 'status', are in {tmp_path / 'rows.jsonl'}")
+    assert main([*argv, "--resume"]) == 1  # the failure is a result of the run: kept, and still reported
+
+
+def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsys):
+    monkeypatch.setitem(SUITES, "skips", Suite("skips", lambda solver, case, settings: [
+        {"status": "skipped: not measured in this test"}]))
+    argv = ["run", "--solver", "counting", "--suite", "one", "skips", "--quick", "--progress", "off",
+            "--case", "smib-inference", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    assert "failed" not in capsys.readouterr().err
+    assert {r["status"] for r in RowStore(tmp_path).rows()} == {"ok", "skipped: not measured in this test"}
