@@ -1,4 +1,9 @@
-"""Command line: `swingbench run` measures, `swingbench report DIR` re-renders tables from CSV rows."""
+"""Command line: `swingbench run` measures, `swingbench report DIR` re-renders tables from CSV rows.
+
+Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
+some failed (one line names them and where their rows are) or were lost (`harness.runner.outcome`);
+2 for bad input, found before anything is measured (`harness.usage.UsageError`: one line on
+stderr, no traceback); 130 on Ctrl-C."""
 
 from __future__ import annotations
 
@@ -8,6 +13,7 @@ import sys
 from pathlib import Path
 
 from harness import sweep  # imports only the standard library until a sweep runs
+from harness.usage import UsageError
 
 SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification", "scaling")
 
@@ -90,7 +96,7 @@ def _known(option: str, given: list[str] | None, known: list[str]) -> None:
     """Every name in `given` must be known: one unknown name anywhere in the list is an error."""
     unknown = [name for name in given or [] if name not in known]
     if unknown:
-        raise SystemExit(f"swingbench run: unknown {option} {', '.join(map(repr, unknown))}; "
+        raise UsageError(f"swingbench run: unknown {option} {', '.join(map(repr, unknown))}; "
                          f"known: {', '.join(known)}")
 
 
@@ -98,7 +104,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.timing import pin_threads
 
     if args.threads < 1:
-        raise SystemExit("swingbench run: --threads must be >= 1")
+        raise UsageError("swingbench run: --threads must be >= 1")
     pin_threads(args.threads)  # before numpy's BLAS, torch or XLA start their pools
 
     from dataclasses import replace
@@ -106,7 +112,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness import executors
     from harness.isolation import Limits
     from harness.report import metadata, write_report
-    from harness.runner import execute, interrupted_message, open_results, plan
+    from harness.runner import check_units, execute, interrupted_message, open_results, outcome, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
@@ -122,26 +128,33 @@ def cmd_run(args: argparse.Namespace) -> int:
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
     if "scaling" in suites and suites != ["scaling"]:
-        raise SystemExit("swingbench run: --suite scaling runs alone (its units run in processes of their own, "
+        raise UsageError("swingbench run: --suite scaling runs alone (its units run in processes of their own, "
                          "its PINNs on an iteration budget)")
     if suites == ["scaling"]:
         settings = settings.for_scaling()
     limits = settings.unit_limits
     if args.unit_seconds is not None or args.unit_memory is not None:
         if any(x is not None and not x > 0 for x in (args.unit_seconds, args.unit_memory)):
-            raise SystemExit("swingbench run: --unit-seconds and --unit-memory must be > 0")
+            raise UsageError("swingbench run: --unit-seconds and --unit-memory must be > 0")
         given = {"seconds": args.unit_seconds, "rss_mb": args.unit_memory}
         limits = (limits or Limits())._replace(**{k: v for k, v in given.items() if v is not None})
     settings = replace(settings, unit_limits=limits)
     cases = [CASES[name] for name in args.case or (settings.scaling_cases if suites == ["scaling"] else settings.cases)]
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
-        raise SystemExit("swingbench run: no solver/config combination selected")
+        raise UsageError("swingbench run: no solver/config combination selected")
     if args.option:
         try:
-            specs = with_options(specs, dict(parse_option(text) for text in args.option), cases[0])
+            specs = with_options(specs, dict(parse_option(text) for text in args.option))
         except ValueError as exc:
-            raise SystemExit(f"swingbench run: --option: {exc}") from None
+            raise UsageError(f"swingbench run: --option: {exc}") from None
+    units = plan(specs, cases, [SUITES[name] for name in suites], settings)
+    try:  # every option on every case it runs on, before the first measurement
+        check_units(units, settings)
+    except ValueError as exc:
+        raise UsageError(f"swingbench run: {exc}") from None
+    if args.update_readme:
+        _readme_around(args.update_readme)
     store, contents = open_results(args.out, args.resume, "run",
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
@@ -154,8 +167,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
         with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
-            execute(plan(specs, cases, [SUITES[name] for name in suites], settings), settings, store, executor,
-                    progress=progress, done=contents.completed if contents else None)  # resume prepared
+            counts = execute(units, settings, store, executor, progress=progress,
+                             done=contents.completed if contents else None)  # resume prepared
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130
@@ -167,7 +180,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         update_readme(args.update_readme, headline_markdown(rows, meta), args.out)
     print(f"[swingbench] wrote {args.out}/", file=sys.stderr)
-    return 0
+    return outcome(rows, store.path, counts["lost"])
 
 
 def _read_rows(store) -> list[dict]:
@@ -182,15 +195,25 @@ def _read_rows(store) -> list[dict]:
 README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
 
 
+def _readme_around(path: Path) -> tuple[str, str]:
+    """The README's text before and after its table markers; UsageError, one line, when it cannot
+    be read or has no such section (checked before a run measures, and again when it writes)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"swingbench run: --update-readme: cannot read {path}: {exc}") from None
+    if README_START not in text or README_END not in text:
+        raise UsageError(f"swingbench run: --update-readme: {path} has no {README_START} ... {README_END} "
+                         "section to update")
+    head, rest = text.split(README_START, 1)
+    return head, rest.split(README_END, 1)[1]
+
+
 def update_readme(path: Path, markdown: str, out: Path) -> None:
     """Replace the text between the README's table markers with the run's tables."""
     from harness.store import atomic_write
 
-    text = path.read_text(encoding="utf-8")
-    if README_START not in text or README_END not in text:
-        raise SystemExit(f"{path} has no {README_START} ... {README_END} section to update")
-    head, rest = text.split(README_START, 1)
-    _, tail = rest.split(README_END, 1)
+    head, tail = _readme_around(path)
     figures = "".join(f"![{p.stem}]({out}/{p.name})\n" for p in sorted(Path(out).glob("work_precision*.png")))
     body = (f"\n_Generated by `swingbench run` into `{out}/` (all tables and plots: `{out}/README.md`); "
             f"do not edit by hand._\n\n{markdown}\n{figures}")
@@ -202,11 +225,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.store import RowStore
 
     if not args.directory.is_dir():
-        raise SystemExit(f"swingbench report: {args.directory} is not a folder of results")
+        raise UsageError(f"swingbench report: {args.directory} is not a folder of results")
     store = RowStore(args.directory, create=False)
     rows = _read_rows(store)
     if not rows:
-        raise SystemExit(f"swingbench report: no rows in {store.path}")
+        raise UsageError(f"swingbench report: no rows in {store.path}")
     meta_path = args.directory / "metadata.json"
     meta = {}
     if meta_path.exists():
@@ -221,7 +244,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     try:
         print(write_report(rows, args.directory, meta))
     except OSError as exc:
-        raise SystemExit(f"swingbench report: cannot write to {args.directory}: {exc.strerror or exc}") from None
+        raise UsageError(f"swingbench report: cannot write to {args.directory}: {exc.strerror or exc}") from None
     return 0
 
 
@@ -231,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv  # for metadata and the command that resumes
     try:
         return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep}[args.command](args)
+    except UsageError as exc:  # one line, no traceback; the interpreter exits with its code and prints nothing
+        print(exc, file=sys.stderr)
+        raise
     except KeyboardInterrupt:  # before or after the measurements (during them, the commands say more)
         print("[swingbench] interrupted; what was recorded is kept: add --resume to continue", file=sys.stderr)
         return 130

@@ -16,6 +16,7 @@ from typing import Any
 from harness.runner import Unit, run_unit, run_unit_in_worker
 from harness.runs import Settings
 from harness.timing import THREAD_ENV
+from harness.usage import UsageError
 
 __all__ = ["choose", "dask", "dask_client", "inline", "joblib"]
 
@@ -99,12 +100,13 @@ def dask_client(scheduler: str | None, workers: int, threads: int = 1) -> Iterat
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise SystemExit("--scheduler/--dask-local need dask.distributed: pip install 'swingbench[dask]'") from None
+        raise UsageError("swingbench: --scheduler/--dask-local need dask.distributed: "
+                         "pip install 'swingbench[dask]'") from None
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, ValueError) as exc:
-            raise SystemExit(f"swingbench: cannot connect to the dask scheduler {scheduler}: {exc}") from None
+            raise UsageError(f"swingbench: cannot connect to the dask scheduler {scheduler}: {exc}") from None
         with client:
             counts = client.nthreads()
             if any(n > threads for n in counts.values()):

@@ -1,10 +1,13 @@
 """One runner for `swingbench run` and `swingbench sweep`.
 
 `plan` (or a sweep's grid) gives units: one solver specification on one case with the suites to
-measure on it, built and fitted once. `execute` skips the units of work (a suite of a unit, or its
-fit) whose completion the store already records, runs the rest on an executor (in this process,
-joblib or Dask: `harness.executors`) and records each unit of work as it completes, with its rows
-in one write (`RowStore.record`). Failures and missing dependencies are rows; the run goes on.
+measure on it, built and fitted once. `check_units` builds (does not fit) every unit's adapter
+before anything is measured, so that an option value invalid on one of the cases stops the command
+at once. `execute` skips the units of work (a suite of a unit, or its fit) whose completion the
+store already records, runs the rest on an executor (in this process, joblib or Dask:
+`harness.executors`) and records each unit of work as it completes, with its rows in one write
+(`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
+says afterwards, in one line, which units failed, and gives the command's exit status.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import sys
 import tempfile
 import time
 import traceback
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -29,12 +32,13 @@ from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key
 from harness.suites import SUITES, Suite
 from harness.timing import blas_threads, pinned_threads
+from harness.usage import EXIT_FAILED, UsageError
 from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
 from systems.cases import Case
 
-__all__ = ["FIT", "Unit", "execute", "fit_or_load", "interrupted_message", "open_results", "plan", "run_suites",
-           "run_unit"]
+__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "interrupted_message",
+           "open_results", "outcome", "plan", "run_suites", "run_unit"]
 
 FIT = "fit"  # the unit of work that records a trained (or built) adapter's preparation cost
 
@@ -76,6 +80,16 @@ class Unit:
     def label(self) -> str:
         return f"{self.spec.label} {self.case.name}"
 
+    def make(self, settings: Settings) -> AbstractSolver:
+        """Its adapter, built on its case (not fitted), as every unit of work of it runs: with the
+        run's thread count for an adapter with a `threads` option the spec does not set. Raises
+        the adapter's ValueError for an option invalid on the case or on this machine."""
+        cls = solver_class(self.spec.solver)
+        given = dict(self.spec.options)
+        extra = {"threads": settings.threads} if cls is not None and "threads" in cls.OPTIONS \
+            and "threads" not in given else {}
+        return self.spec.make(self.case, **extra)
+
 
 def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
     seeds = [s.seed for s in specs if (s.solver, s.config, s.options) == (spec.solver, spec.config, spec.options)]
@@ -114,6 +128,26 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settin
             if chosen:
                 units.append(Unit(case, spec if settings is None else settings.budgeted(spec, case), tuple(chosen)))
     return units
+
+
+def check_units(units: Iterable[Unit], settings: Settings,
+                describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
+    """Build (not fit) the adapter of every unit as it would run, once per spec and case, so that an
+    option value that one of the cases or this machine refuses (a step longer than the case's
+    horizon, a device that is not there: the adapter's own rules) stops the command before anything
+    is measured, instead of failing that unit after the others ran. Adapters that are not installed
+    are not checked (their rows say 'skipped'). Raises ValueError, one line: `describe(unit)`, then
+    the adapter's message, which names the option and the value."""
+    seen = set()
+    for unit in units:
+        key = (unit.spec.label, unit.case.name)  # option values may be lists: labels hash, specs may not
+        if key in seen or solver_class(unit.spec.solver) is None:
+            continue
+        seen.add(key)
+        try:
+            unit.make(settings)
+        except (ValueError, TypeError) as exc:  # TypeError: an adapter's rule meeting a value of the wrong type
+            raise ValueError(f"{describe(unit)}: {exc}") from None
 
 
 def fit_or_load(solver: AbstractSolver, settings: Settings) -> FitReport:
@@ -176,13 +210,10 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
             yield work, [{"suite": work, **base, "status": UNAVAILABLE[unit.spec.solver]}]
         return
     suites = [w for w in todo if w != FIT]
-    # the run's thread count, for adapters with a `threads` option the spec does not set
-    options = {"threads": settings.threads} if "threads" in cls.OPTIONS and "threads" not in dict(unit.spec.options) \
-        else {}
     with blas_threads(cls.blas_threads):
         try:
             start = time.perf_counter()
-            solver = unit.spec.make(unit.case, **options)
+            solver = unit.make(settings)
             if any(SUITES[s].needs_fit for s in suites) or FIT in todo:
                 report = fit_or_load(solver, settings)
                 if FIT in todo:
@@ -222,12 +253,21 @@ def _progress_bar(total: int, enabled: bool | None):
     return tqdm(total=total, unit="work", file=sys.stderr, dynamic_ncols=True)
 
 
+def failed(row: dict) -> bool:
+    """Whether `row` records a failure: a status that is neither "ok" nor a declared skip
+    ("skipped: ...": a missing dependency, a unit out of time or memory, a query the settings do
+    not measure), e.g. "failed: SolveError: ..."."""
+    status = str(row.get("status"))
+    return status != "ok" and not status.startswith("skipped")
+
+
 def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor=None,
             progress: bool | None = None, done: set[tuple] | None = None) -> dict[str, int]:
     """Run every unit of work of `units` not in `done` (keys of completed units, e.g. from
     `RowStore.prepare_resume`) on `executor` (default: this process, `harness.executors.inline`)
-    and record each as it completes. Returns counts of units of work: {"ok", "failed", "lost"}
-    (lost: the executor broke before returning them; nothing is recorded, `--resume` runs them)."""
+    and record each as it completes. Returns counts of units of work: {"ok", "skipped", "failed",
+    "lost"} (failed: a row of it `failed`; skipped: none failed, some declared a skip; lost: the
+    executor broke before returning them; nothing is recorded, `--resume` runs them)."""
     from harness import executors
 
     done = set() if done is None else done
@@ -236,7 +276,7 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         todo = tuple(w for w in unit.works() if unit.key(w) not in done)
         if todo:
             jobs.append((unit, todo))
-    counts = {"ok": 0, "failed": 0, "lost": 0}
+    counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
     bar = _progress_bar(sum(len(todo) for _, todo in jobs), progress)
     try:
         for unit, work, rows in (executor or executors.inline)(jobs, settings):
@@ -244,7 +284,8 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
                 counts["lost"] += 1
             else:
                 store.record(unit.work_key(work), rows)
-                counts["ok" if all(r.get("status") == "ok" for r in rows) else "failed"] += 1
+                counts["failed" if any(map(failed, rows)) else
+                       "ok" if all(r.get("status") == "ok" for r in rows) else "skipped"] += 1
             if bar:
                 bar.set_description(f"{unit.label} {work}")
                 bar.update(1)
@@ -254,17 +295,60 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
     return counts
 
 
+def _unit_label(row: dict) -> str:
+    """`Unit.label` of the unit a row belongs to, from the row's columns."""
+    seed = row.get("seed")
+    extra = "".join(f",{part}" for part in (row.get("variant") or "", "" if seed in (None, -1) else f"seed={seed}")
+                    if part)
+    return f"{row.get('solver')}[{row.get('config')}{extra}] {row.get('case')}"
+
+
+def failure_summary(rows: Iterable[dict], where: Path, shown: int = 5) -> str | None:
+    """One line on the units of work in `rows` that `failed` (declared skips are not failures): how
+    many, in which units (solver, config, variant and case; the first `shown` of them) and which
+    of their units of work, and `where` their rows are. None when nothing failed."""
+    works: dict[str, list[str]] = {}
+    for row in rows:
+        if failed(row):
+            suites = works.setdefault(_unit_label(row), [])
+            if row.get("suite") not in suites:
+                suites.append(row.get("suite"))
+    if not works:
+        return None
+    listed = "; ".join(f"{label} ({', '.join(map(str, suites))})" for label, suites in list(works.items())[:shown])
+    more = f"; and {len(works) - shown} more unit(s)" if len(works) > shown else ""
+    return (f"{sum(map(len, works.values()))} unit(s) of work failed, in {len(works)} unit(s): {listed}{more}; "
+            f"their rows, with the reason in 'status', are in {where}")
+
+
+def outcome(rows: list[dict], where: Path, lost: int = 0) -> int:
+    """The exit status of a command that measured: 0 when no unit of work in `rows` failed and
+    none was lost; else one line on stderr for each (`failure_summary`; lost units are run by
+    --resume) and `EXIT_FAILED`. `rows` are those of the whole output folder: a resumed run's
+    earlier failures are results of the run too, kept, not run again."""
+    summary = failure_summary(rows, where)
+    if summary:
+        print(f"[swingbench] {summary}", file=sys.stderr)
+    if lost:
+        print(f"[swingbench] {lost} unit(s) of work lost to the executor, not recorded: add --resume to run them",
+              file=sys.stderr)
+    return EXIT_FAILED if summary or lost else 0
+
+
 def run_suites(
     specs: Iterable[SolverSpec], cases: Iterable[Case], suites: Iterable[str], settings: Settings,
     store: RowStore, progress: bool | None = None, resume: bool = False,
 ) -> dict[str, int]:
     """`execute` the `plan` of `specs` x `cases` x `suites` in this process. With `resume`, what
-    the store records as complete is not run again (see `RowStore.prepare_resume`)."""
+    the store records as complete is not run again (see `RowStore.prepare_resume`). ValueError,
+    before anything is measured, for an unknown suite or an option invalid on one of the cases
+    (`check_units`)."""
     names = list(suites)
     unknown = [s for s in names if s not in SUITES]
     if unknown:
         raise ValueError(f"unknown suite(s) {', '.join(unknown)}; known: {', '.join(SUITES)}")
     units = plan(list(specs), list(cases), [SUITES[n] for n in names], settings)
+    check_units(units, settings)
     done = store.prepare_resume().completed if resume else set()
     return execute(units, settings, store, progress=progress, done=done)
 
@@ -275,18 +359,18 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
     missing), writable. Without `resume` earlier rows are removed; with it, the run being continued
     must have recorded the values `same` in `out/metadata.json` (rows of other settings would mix),
     and an interrupted unit is set aside (`RowStore.prepare_resume`). Problems exit with one line
-    (SystemExit)."""
+    (`UsageError`)."""
     out = Path(out)
     if resume and same:
         _check_same_run(out / "metadata.json", same, command)
     if out.exists() and not out.is_dir():
-        raise SystemExit(f"swingbench {command}: --out {out} is a file, not a folder")
+        raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out):
             pass
     except OSError as exc:
-        raise SystemExit(f"swingbench {command}: cannot write to --out {out}: {exc.strerror or exc}") from None
+        raise UsageError(f"swingbench {command}: cannot write to --out {out}: {exc.strerror or exc}") from None
     store = RowStore(out)
     if not resume:
         store.clear()
@@ -294,7 +378,7 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
     try:
         contents = store.prepare_resume()
     except ValueError as exc:
-        raise SystemExit(f"swingbench {command}: {exc}") from None
+        raise UsageError(f"swingbench {command}: {exc}") from None
     if contents.incomplete_rows or contents.bad_lines:
         print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
               f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
@@ -302,7 +386,7 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
 
 
 def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
-    """SystemExit when the metadata at `path` records another value of a key of `same` (an
+    """UsageError when the metadata at `path` records another value of a key of `same` (an
     unreadable or missing file, or a missing key, is no evidence either way)."""
     try:
         recorded = json.loads(path.read_text(encoding="utf-8"))
@@ -312,7 +396,7 @@ def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
         return
     for key, value in same.items():
         if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
-            raise SystemExit(f"swingbench {command}: --resume continues the run in {path.parent}, made with "
+            raise UsageError(f"swingbench {command}: --resume continues the run in {path.parent}, made with "
                              f"{key} {recorded[key]!r}, not {value!r}: run it with the same options, or "
                              "without --resume")
 

@@ -256,11 +256,11 @@ def parse_option(text: str) -> tuple[str, Any]:
         return key, value
 
 
-def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any], case: Case) -> list[SolverSpec]:
+def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any]) -> list[SolverSpec]:
     """`specs` with `overrides` set in the options of every spec whose adapter has the option (its
     variant then shows them). ValueError when an override is an option of none of the specs'
-    adapters, or when a value is invalid (each changed spec's adapter is constructed on `case`,
-    not fitted, to validate it)."""
+    adapters. The values are checked where every option is, on every case it runs on: by building
+    each unit's adapter before measuring (`harness.runner.check_units`)."""
     specs = list(specs)
     known = {key for spec in specs if SOLVERS.get(spec.solver) for key in SOLVERS[spec.solver].OPTIONS}
     unknown = sorted(set(overrides) - known)
@@ -272,6 +272,5 @@ def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any], case: C
         mine = {k: v for k, v in overrides.items() if cls is not None and k in cls.OPTIONS}
         if mine:
             spec = replace(spec, options=tuple(sorted({**dict(spec.options), **mine}.items())))
-            spec.make(case)  # raises ValueError naming a bad value
         out.append(spec)
     return out

@@ -21,8 +21,9 @@ SPEC is a JSON file::
 
 Every key of "grid" and "options" must be an option of the adapter (`SOLVERS[name].OPTIONS`);
 "seed" is set through "seeds" and "threads" is fixed at 1 (each run gets one core). Every grid
-point is checked by constructing the adapter (which validates the option values) before any run
-starts; a bad spec stops with a message naming the key.
+point is checked on every case by constructing its adapter as the run will (which validates the
+option values, those that depend on the case too: `harness.runner.check_units`) before any run
+starts, --dry-run included; a bad spec stops with one line naming the key (exit status 2).
 
 Each run is one unit of `harness.runner` (the runner of `swingbench run`: one row store, one
 resume rule, one thread-pinning helper, one progress bar): the adapter is built, fitted
@@ -36,6 +37,10 @@ Executors (`harness.executors`, only the executor differs): by default joblib's 
 --workers processes of 1 thread each; with --scheduler ADDRESS an existing dask.distributed
 cluster (its workers should run 1 thread each, e.g. `dask worker ADDRESS --nthreads 1`, and have
 swingbench installed), with --dask-local a LocalCluster of --workers processes, 1 thread each.
+
+Exit status: 0 when every run was measured (a declared skip counts as measured), 1 when a unit of
+work failed (one line names the runs and where their rows are) or the executor lost some, 2 for a
+bad spec or option, 130 on Ctrl-C.
 
 Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
 finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
@@ -215,21 +220,30 @@ def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
     return spec
 
 
-def _check_points(spec: SweepSpec) -> None:
-    """Construct (not fit) the adapter once per grid point: it rejects bad option values."""
-    from solvers import make_solver
-    from systems.cases import CASES
+def _settings(retrain: bool = False):
+    """The settings every run of a sweep has: 1 thread (runs share the cores)."""
+    from harness.runs import Settings
 
-    case = CASES[spec.cases[0]]
-    for point in spec.points():
-        options = {**dict(spec.options), **point}
-        if spec.seeds[0] is not None:
-            options["seed"] = spec.seeds[0]
-        try:
-            make_solver(spec.solver, case, spec.config, **options)
-        except (ValueError, TypeError) as exc:
-            where = ", ".join(f"{k}={v!r}" for k, v in point.items()) or "the fixed options"
-            raise ValueError(f"'grid' point {where}: {exc}") from None
+    return Settings(name="sweep", threads=1, retrain=retrain)
+
+
+def _check_points(spec: SweepSpec) -> None:
+    """Construct (not fit) the adapter of every grid point on every case, as its runs will be
+    (`harness.runner.check_units`; the first seed: a seed cannot make options invalid): it rejects
+    bad option values, those invalid on one case only too."""
+    from harness.runner import check_units
+
+    points = spec.points()
+
+    def describe(unit) -> str:
+        point = points[dict(unit.columns)["point"]]
+        where = ", ".join(f"{k}={v!r}" for k, v in point.items()) or "the fixed options"
+        return f"point {where} on case {unit.case.name}" if len(spec.cases) > 1 else f"point {where}"
+
+    try:
+        check_units([u for u in spec.units() if u.spec.seed == spec.seeds[0]], _settings(), describe)
+    except ValueError as exc:
+        raise ValueError(f"'grid' {exc}") from None
 
 
 def load_spec(path: Path, check: bool = True) -> SweepSpec:
@@ -377,14 +391,17 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """`swingbench sweep`: 0 when every run was measured (failed runs are rows), 1 if the executor
-    lost some (`--resume` runs them), 130 on Ctrl-C."""
+    """`swingbench sweep`: 0 when every run was measured, 1 when a unit of work failed (its rows
+    say why; one line names them) or the executor lost some (`--resume` runs them), 2 (a
+    `UsageError`) for a bad spec, 130 on Ctrl-C."""
+    from harness.usage import UsageError
+
     if args.workers < 1:
-        raise SystemExit("swingbench sweep: --workers must be >= 1")
+        raise UsageError("swingbench sweep: --workers must be >= 1")
     try:
         spec = load_spec(args.spec)
     except ValueError as exc:
-        raise SystemExit(f"swingbench sweep: {exc}") from None
+        raise UsageError(f"swingbench sweep: {exc}") from None
     units = spec.units()
     if args.dry_run:
         for unit in units:
@@ -394,12 +411,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     from harness import executors
     from harness.report import metadata
-    from harness.runner import execute, interrupted_message, open_results
-    from harness.runs import Settings
+    from harness.runner import execute, interrupted_message, open_results, outcome
     from harness.store import atomic_write
 
     store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()})
-    settings = Settings(name="sweep", threads=1, retrain=args.retrain)
+    settings = _settings(args.retrain)
     executor = (f"dask scheduler {args.scheduler}" if args.scheduler else
                 f"dask LocalCluster, {args.workers} worker process(es)" if args.dask_local else
                 f"joblib loky, {args.workers} worker process(es)")
@@ -419,6 +435,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         return 130
     markdown = write_outputs(store, args.out, meta)
     print(markdown)
-    print(f"[swingbench sweep] {counts['ok']} ok, {counts['failed']} failed, {counts['lost']} lost to "
-          f"the executor; wrote {args.out}/", file=sys.stderr)
-    return 1 if counts["lost"] else 0
+    print(f"[swingbench sweep] units of work: {counts['ok']} ok, {counts['skipped']} skipped, {counts['failed']} "
+          f"failed, {counts['lost']} lost to the executor; wrote {args.out}/", file=sys.stderr)
+    return outcome(store.rows(), store.path, counts["lost"])

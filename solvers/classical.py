@@ -16,7 +16,8 @@ from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "ToleranceOptions", "identify_least_squares", "search_boxes"]
+__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "ToleranceOptions", "check_step", "identify_least_squares",
+           "search_boxes"]
 
 
 class ToleranceOptions(OptionSchema):
@@ -29,6 +30,17 @@ class ToleranceOptions(OptionSchema):
     atol: PositiveFloat = 1e-6
     m_bounds: Bounds | None = None
     d_bounds: Bounds | None = None
+
+
+def check_step(owner: str, dt: float | None, case: Case) -> None:
+    """The rule of a fixed step `dt` (s; None: adaptive, no rule) on `case`, one for every adapter
+    with a step option: at most the case's horizon t_final. A longer step is not the step an
+    integration of that case takes (numba-rk's rk4 takes one step of t_final instead, diffrax clips
+    the step at the end), so the rows would name a step that was never used. Raises ValueError, one
+    line starting with `owner` and naming the option, the value and the case."""
+    if dt is not None and dt > case.t_final:
+        raise ValueError(f"{owner}: option dt must be <= t_final = {case.t_final} s, the horizon of case "
+                         f"{case.name}, got {dt!r}")
 
 
 def search_boxes(case: Case, options: dict) -> tuple[np.ndarray, np.ndarray]:

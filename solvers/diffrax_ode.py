@@ -17,6 +17,7 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     ObservationLayout,
     ToleranceOptions,
+    check_step,
     identify_least_squares,
     search_boxes,
 )
@@ -145,7 +146,7 @@ Method = Literal[tuple(METHODS)]  # one of the keys of METHODS
 
 class DiffraxOptions(ToleranceOptions):
     method: Method = "dopri8"
-    dt: PositiveFloat | None = None  # s; None: adaptive
+    dt: PositiveFloat | None = None  # s; None: adaptive; <= the case's t_final (`check_step`, by the adapter)
     batch: Literal["stacked", "vmap"] = "stacked"
     max_steps: PositiveInt = 16384
     threads: PositiveInt = 2
@@ -159,13 +160,13 @@ class DiffraxODE(AbstractSolver):
     mechanical power is P1, the others' the case's p_m (`Case.powers`).
 
     Options: method ("dopri8", "dopri5", "tsit5"); rtol, atol (defaults 1e-3, 1e-6: ode45's; PID
-    control on the RMS norm of the whole state); dt (None: adaptive; a step in s: constant step,
-    rtol and atol unused); batch: "stacked" (the default: one system of 2 * len(P1) states, one step
-    size for all) or "vmap" (jax.vmap of one-trajectory solves, each with its own steps; the batched
-    while loop runs until the slowest finishes and masks the others); max_steps (a solve that
-    needs more fails with SolveError); m_bounds, d_bounds (p.u.), the search box of `identify`
-    (default: the case's per-machine boxes); threads: XLA's CPU threads (process-wide, applied if
-    XLA has not started yet).
+    control on the RMS norm of the whole state); dt (None: adaptive; a step in s, at most the
+    case's t_final: constant step, rtol and atol unused); batch: "stacked" (the default: one system
+    of 2 * len(P1) states, one step size for all) or "vmap" (jax.vmap of one-trajectory solves,
+    each with its own steps; the batched while loop runs until the slowest finishes and masks the
+    others); max_steps (a solve that needs more fails with SolveError); m_bounds, d_bounds (p.u.),
+    the search box of `identify` (default: the case's per-machine boxes); threads: XLA's CPU
+    threads (process-wide, applied if XLA has not started yet).
 
     Measured on 2 cores, SMIB, 100 x 201 grid, Dopri8, jitted: stacked 0.92 ms at rtol 1e-6 (rel. L2
     3.3e-7), vmap 3.2 ms (4.5e-7); vmap is 3-4x slower at every tolerance and method tried, as
@@ -202,6 +203,10 @@ class DiffraxODE(AbstractSolver):
             # Dopri8 reaches the reference's 1e-12 at dt = 0.2 s already: the curve starts coarse
             return [{"dt": h} for h in (1.0, 0.5, 0.2, 0.1, 0.05, 0.02)]
         return super().precision_sweep(rtols)
+
+    def _check_options(self) -> None:
+        """The step rule that depends on the case, numba-rk's (the rest is `DiffraxOptions`)."""
+        check_step(self.name, self.options["dt"], self.case)
 
     def _functions(self, structure: Structure):
         o = self.options

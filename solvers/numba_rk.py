@@ -15,6 +15,7 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     ObservationLayout,
     ToleranceOptions,
+    check_step,
     identify_least_squares,
     search_boxes,
 )
@@ -35,7 +36,7 @@ Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.ME
 
 class NumbaRKOptions(ToleranceOptions):
     method: Method = "dop853"
-    dt: PositiveFloat = 0.1  # s; <= the case's t_final (checked by the adapter)
+    dt: PositiveFloat = 0.1  # s; <= the case's t_final (`check_step`, by the adapter)
     max_steps: PositiveInt = 100_000
     parallel: StrictBool = False
     threads: PositiveInt = 2  # <= numba's NUMBA_NUM_THREADS (checked by the adapter)
@@ -73,9 +74,7 @@ class NumbaRK(AbstractSolver):
     def _check_options(self) -> None:
         """The rules that depend on the case and the machine (the rest is `NumbaRKOptions`)."""
         options = self.options
-        if options["dt"] > self.case.t_final:
-            raise ValueError(f"{self.name}: option dt must be <= t_final = {self.case.t_final} s, "
-                             f"got {options['dt']!r}")
+        check_step(self.name, options["dt"], self.case)
         if options["threads"] > numba.config.NUMBA_NUM_THREADS:
             raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
                              f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")

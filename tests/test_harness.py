@@ -448,14 +448,46 @@ def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
     assert parse_option("max_seconds=null") == ("max_seconds", None)
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_option("rtol")
+    from harness.runner import check_units, plan
+    from harness.suites import SUITES
+
     specs = default_specs(["scipy-rk45", "numba-rk"], ["default"])
-    tuned = with_options(specs, {"batch": "stacked"}, SMIB_INFERENCE)
+    tuned = with_options(specs, {"batch": "stacked"})
     assert {s.variant for s in tuned if s.solver == "scipy-rk45"} == {"batch=stacked"}
     assert [s.variant for s in tuned if s.solver == "numba-rk"] == [s.variant for s in specs if s.solver == "numba-rk"]
     with pytest.raises(ValueError, match="none of the selected adapters"):
-        with_options(specs, {"width": 3}, SMIB_INFERENCE)
-    with pytest.raises(ValueError, match="batch"):
-        with_options(specs, {"batch": "sideways"}, SMIB_INFERENCE)
+        with_options(specs, {"width": 3})
+    units = plan(with_options(specs, {"batch": "sideways"}), [SMIB_INFERENCE], [SUITES["accuracy"]], QUICK)
+    with pytest.raises(ValueError, match=r"^scipy-rk45\[default,batch=sideways\] smib-inference: scipy-rk45: "
+                                         "option batch must be one of"):
+        check_units(units, QUICK)
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--solver", "numba-rk", "--config", "rk4", "--option", "dt=15"],  # valid on the SMIB's 20 s, not on 10 s
+     ("swingbench run: numba-rk[rk4,dt=15] wscc9: numba-rk: option dt must be <= t_final = 10.0 s, the horizon "
+      "of case wscc9, got 15.0")),
+    (["--solver", "torch-pinn", "--config", "default", "--option", "device=cuda"],
+     "swingbench run: torch-pinn[default,device=cuda,"),
+])
+def test_cli_refuses_an_option_a_selected_case_or_this_machine_cannot_take_before_measuring(
+        argv, message, tmp_path, capsys, monkeypatch):
+    name = argv[1]
+    if solvers.SOLVERS.get(name) is None:
+        pytest.skip(f"{name} is not installed")
+    if name == "torch-pinn":
+        import torch
+
+        monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--quick", "--progress", "off", "--case", "smib-inference", "wscc9", "--suite", "accuracy",
+              *argv, "--out", str(out)])
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(message) and "Traceback" not in captured.err
+    assert not out.exists()  # refused before the first measurement
 
 
 def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():

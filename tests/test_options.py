@@ -132,6 +132,37 @@ def test_case_dependent_rules_stay_in_the_hooks():
                 make_solver(name, CASE, n_u=0, n_f=0)
 
 
+@pytest.mark.parametrize(("name", "config"), [("numba-rk", "rk4"), ("diffrax", "default")])
+def test_a_step_longer_than_the_case_s_horizon_is_refused_by_one_rule_naming_the_case(name, config):
+    from systems.cases import CASES
+
+    if name not in ADAPTERS:
+        pytest.skip(f"{name} is not installed")
+    wscc9 = CASES["wscc9"]  # a 10 s horizon, the SMIB's is 20 s
+    assert make_solver(name, CASE, config, dt=15).options["dt"] == 15.0
+    assert make_solver(name, wscc9, config, dt=wscc9.t_final).options["dt"] == wscc9.t_final
+    with pytest.raises(ValueError) as info:
+        make_solver(name, wscc9, config, dt=15)
+    assert str(info.value) == (f"{name}: option dt must be <= t_final = 10.0 s, the horizon of case wscc9, "
+                               "got 15.0")
+
+
+def test_a_cuda_device_must_exist_when_the_adapter_is_built(monkeypatch):
+    if "torch-pinn" not in ADAPTERS:
+        pytest.skip("torch is not installed")
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ValueError) as info:
+        make_solver("torch-pinn", CASE, device="cuda")
+    message = str(info.value)
+    assert message.startswith("torch-pinn: option device must be 'cpu' on this machine")
+    assert message.endswith("got 'cuda'") and CASE.name in message and "\n" not in message
+    assert make_solver("torch-pinn", CASE, device="cpu").options["device"] == "cpu"
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert make_solver("torch-pinn", CASE, device="cuda").options["device"] == "cuda"  # built, not trained
+
+
 def test_pinn_config_is_validated_by_the_same_schema():
     config = PinnConfig()
     assert PinnConfig(**config.to_json()) == config  # load_model's round trip

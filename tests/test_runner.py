@@ -19,18 +19,24 @@ from harness.runs import QUICK, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite
 from solvers.base import AbstractSolver
-from systems.cases import SMIB_INFERENCE
+from systems.cases import CASES, SMIB_INFERENCE
 
 SETTINGS = replace(QUICK, cache_dir=None)
 KEY = {"suite": "s", "case": "c", "solver": "x", "config": "default", "variant": "", "seed": -1}
 
 
 class Counting(AbstractSolver):
-    """Fits by counting; registered only while a test runs."""
+    """Fits by counting; registered only while a test runs. Its step `dt` (s) has numba-rk's rule:
+    at most the case's horizon (20 s on the SMIB, 10 s on wscc9)."""
 
     name = "counting"
-    OPTIONS: ClassVar = {"threads": 1}
+    OPTIONS: ClassVar = {"threads": 1, "dt": 0.1}
     fits = 0
+
+    def _check_options(self):
+        if self.options["dt"] > self.case.t_final:
+            raise ValueError(f"counting: option dt must be <= t_final of case {self.case.name}, "
+                             f"got {self.options['dt']!r}")
 
     def _fit(self):
         type(self).fits += 1
@@ -122,10 +128,10 @@ def test_a_reader_does_not_create_the_folder(tmp_path):
 
 def test_resuming_a_finished_run_changes_nothing(tmp_path, counting):
     store = RowStore(tmp_path)
-    assert _run(store) == {"ok": 3, "failed": 0, "lost": 0}
+    assert _run(store) == {"ok": 3, "skipped": 0, "failed": 0, "lost": 0}
     before = store.path.read_bytes()
     assert [r["suite"] for r in store.rows()] == ["fit", "one", "one", "two"]
-    assert _run(store, resume=True) == {"ok": 0, "failed": 0, "lost": 0}
+    assert _run(store, resume=True) == {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
     assert store.path.read_bytes() == before and counting == ["one", "two"] and Counting.fits == 1
 
 
@@ -142,7 +148,7 @@ def test_resume_runs_only_what_is_not_recorded_and_never_repeats_the_fit_row(tmp
 def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
     monkeypatch.setattr(Counting, "_fit", lambda self: 1 / 0)
     store = RowStore(tmp_path)
-    assert _run(store) == {"ok": 0, "failed": 3, "lost": 0}
+    assert _run(store) == {"ok": 0, "skipped": 0, "failed": 3, "lost": 0}
     assert {r["status"] for r in store.rows()} == {"failed: ZeroDivisionError: division by zero"}
     before = store.path.read_bytes()
     _run(store, resume=True)
@@ -215,3 +221,64 @@ def test_resume_refuses_a_run_made_with_other_settings(tmp_path, counting):
     with pytest.raises(SystemExit, match="made with settings 'quick', not 'default'"):
         main([*argv, "--resume"])
     assert main([*argv, "--quick", "--resume"]) == 0
+
+
+# ------------------------------------------------------------------------ checks and exit status
+
+RUN = ["run", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+
+
+def test_an_option_invalid_on_one_case_stops_the_run_before_it_measures(tmp_path, counting, capsys):
+    wscc9 = CASES["wscc9"]
+    with pytest.raises(ValueError, match="^counting\\[default,dt=15\\] wscc9: counting: option dt must be <= "
+                                         "t_final of case wscc9, got 15"):
+        run_suites([SolverSpec("counting", options=(("dt", 15),))], [SMIB_INFERENCE, wscc9], ["one"], SETTINGS,
+                   RowStore(tmp_path / "api"), progress=False)
+    assert counting == [] and RowStore(tmp_path / "api").rows() == []
+
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as info:
+        main([*RUN, "--case", "smib-inference", "wscc9", "--option", "dt=15", "--out", str(out)])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [("swingbench run: counting[default,dt=15] wscc9: counting: option dt must be <= t_final of "
+                    "case wscc9, got 15")]
+    assert counting == [] and not out.exists()  # nothing measured, no folder made (nor an old one cleared)
+    assert main([*RUN, "--case", "smib-inference", "--option", "dt=15", "--out", str(out)]) == 0  # valid there
+
+
+@pytest.mark.parametrize("argv", [
+    ["--solver", "nope"],
+    ["--option", "width=3"],
+    ["--option", "dt"],
+    ["--threads", "0"],
+    ["--case", "smib-inference", "--update-readme", "missing.md"],
+])
+def test_bad_input_is_one_line_on_stderr_and_exit_status_2(argv, tmp_path, counting, capsys):
+    with pytest.raises(SystemExit) as info:
+        main([*RUN, *argv, "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("swingbench run: ") and "Traceback" not in captured.err
+    assert counting == [] and not (tmp_path / "out").exists()
+
+
+def test_a_failed_unit_exits_1_with_one_line_naming_it_and_its_rows(tmp_path, counting, monkeypatch, capsys):
+    argv = [*RUN, "--case", "smib-inference", "--out", str(tmp_path)]
+    monkeypatch.setattr(Counting, "_fit", lambda self: 1 / 0)
+    assert main(argv) == 1
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last == (f"[swingbench] 2 unit(s) of work failed, in 1 unit(s): counting[default] smib-inference "
+                    f"(fit, one); their rows, with the reason in 'status', are in {tmp_path / 'rows.jsonl'}")
+    assert main([*argv, "--resume"]) == 1  # the failure is a result of the run: kept, and still reported
+
+
+def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsys):
+    monkeypatch.setitem(SUITES, "skips", Suite("skips", lambda solver, case, settings: [
+        {"status": "skipped: not measured in this test"}]))
+    argv = ["run", "--solver", "counting", "--suite", "one", "skips", "--quick", "--progress", "off",
+            "--case", "smib-inference", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    assert "failed" not in capsys.readouterr().err
+    assert {r["status"] for r in RowStore(tmp_path).rows()} == {"ok", "skipped: not measured in this test"}

@@ -149,6 +149,50 @@ def test_cli_errors_are_system_exits(tmp_path):
         _cli(str(spec), "--workers", "0")
 
 
+def test_a_bad_spec_is_one_line_and_exit_status_2(tmp_path, capsys):
+    from harness.cli import main
+
+    spec = _write(tmp_path, {"solver": "casadi-cvodes", "grid": {"bogus": [1]}})
+    with pytest.raises(SystemExit) as info:
+        main(["sweep", str(spec), "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"swingbench sweep: {spec}: 'grid': unknown option 'bogus'")
+    assert "Traceback" not in captured.err and not (tmp_path / "out").exists()
+
+
+STEP_ON_TWO_HORIZONS = {"solver": "numba-rk", "config": "rk4", "cases": ["smib-inference", "wscc9"],
+                        "grid": {"dt": [0.1, 15]}}  # 15 s: within the SMIB's 20 s, past wscc9's 10 s
+
+
+def test_a_grid_value_invalid_on_one_case_only_is_refused_before_any_run(tmp_path, capsys):
+    if SOLVERS.get("numba-rk") is None:
+        pytest.skip("numba is not installed")
+    with pytest.raises(ValueError) as info:
+        sweep.parse_spec(STEP_ON_TWO_HORIZONS)
+    assert str(info.value) == ("'grid' point dt=15 on case wscc9: numba-rk: option dt must be <= t_final = "
+                               "10.0 s, the horizon of case wscc9, got 15.0")
+    spec = _write(tmp_path, STEP_ON_TWO_HORIZONS)
+    for extra in (["--dry-run"], []):
+        with pytest.raises(SystemExit, match="'grid' point dt=15 on case wscc9") as info:
+            _cli(str(spec), *extra, "--out", str(tmp_path / "out"))
+        assert info.value.code == 2
+    assert capsys.readouterr().out == "" and not (tmp_path / "out").exists()
+
+
+def test_a_failed_run_exits_1_with_one_line_naming_it_and_its_rows(tmp_path, fake, monkeypatch, capsys):
+    from harness import executors
+
+    monkeypatch.setattr(executors, "joblib", lambda workers: executors.inline)  # in this process: the fake is here
+    out = tmp_path / "out"
+    assert _cli(str(_write(tmp_path, {"solver": fake, "grid": {"width": [5]}})), "--out", str(out)) == 1
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last == ("[swingbench] 1 unit(s) of work failed, in 1 unit(s): fake-trainer[default,width=5,seed=0] "
+                    f"smib-inference (accuracy); their rows, with the reason in 'status', are in {out / 'rows.jsonl'}")
+    assert [r["status"].split(":")[0] for r in RowStore(out).rows()] == ["ok", "failed"]  # the fit, the accuracy
+
+
 def test_help_documents_the_format(capsys):
     with pytest.raises(SystemExit) as info:
         _parser().parse_args(["sweep", "--help"])
@@ -251,7 +295,7 @@ def test_failed_run_does_not_stop_the_sweep(tmp_path):
                ("accuracy",), (("point", 2), ("p_rtol", -1.0)))
     store = RowStore(tmp_path)
     counts = execute([units[0], bad, units[1]], Settings(threads=1), store, executors.joblib(2), progress=False)
-    assert counts == {"ok": 4, "failed": 2, "lost": 0}  # units of work: a fit and an accuracy each
+    assert counts == {"ok": 4, "skipped": 0, "failed": 2, "lost": 0}  # units of work: a fit and an accuracy each
     rows = store.rows()
     failed = [r for r in rows if r["status"] != "ok"]
     assert len(failed) == 2 and {r["p_rtol"] for r in failed} == {-1.0}

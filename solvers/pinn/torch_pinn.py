@@ -205,10 +205,17 @@ class TorchPinn(PinnSolver):
     name: ClassVar[str] = "torch-pinn"
     SCHEMA = TorchOptions
 
+    def _check_options(self) -> None:
+        """The rule that depends on the machine: a "cuda" device must exist (checked when the
+        adapter is built, not when training starts, so that a run refuses it before measuring)."""
+        super()._check_options()
+        if self.options["device"] == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"{self.name}: option device must be 'cpu' on this machine (torch "
+                             f"{torch.__version__} finds no CUDA device to train case {self.case.name} on), "
+                             "got 'cuda'")
+
     def _prepare_backend(self) -> str:
         torch.set_num_threads(self.options["threads"])
-        if self.options["device"] == "cuda" and not torch.cuda.is_available():
-            raise ValueError(f"device='cuda': torch {torch.__version__} finds no CUDA device here")
         return "" if self.options["device"] == "cpu" else f"trained on {torch.cuda.get_device_name(0)}"
 
     def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
