@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Literal
 import numpy as np
 
 from solvers.base import AbstractSolver, FitReport, NotFittedError
-from solvers.identification import Estimate, gauss_newton_covariance
+from solvers.identification import Estimate, linearised_covariance
 from solvers.options import PositiveInt, StrictBool
 from solvers.pinn import spec
 from solvers.pinn.network import Physics
@@ -391,15 +391,11 @@ class PinnSolver(AbstractSolver):
         configured), from `spec.start_guess` (one network over the whole horizon, also in
         time-marching configurations).
 
-        Uncertainty: the Gauss-Newton covariance (2n x 2n) of (log m_1..n, log d_1..n) conditional
-        on the trained network, held fixed: the swing residual f_k = m_k delta_k'' + d_k delta_k' +
-        P_e,k - P_k (or its omega form) at the collocation points is linear in m_k and d_k, so its
-        Jacobian columns are exactly r(2 m_k) - r(m_k) and r(2 d_k) - r(d_k) (2n residual
-        evaluations, no (N, P) Jacobian, the same for both optimisers); the data residuals do not
-        depend on m, d. The residual variance is that of the swing residuals,
-        s^2 = ||f||^2 / (n_f n - 2n). It ignores the network's own uncertainty (its weights trade off
-        against m, d; the full Jacobian over all weights is rank-deficient), so it is a lower bound
-        on the spread, not a calibrated interval."""
+        Uncertainty: the linearised covariance (2n x 2n) of (log m_1..n, log d_1..n) over every
+        parameter of the trained network (`linearised_covariance`): how far the estimate moves with
+        the observations' noise, the network's weights free to trade off against m and d, with
+        the noise variance from the leave-one-out data residuals (a network that nearly
+        interpolates its samples hides the noise in its own residuals)."""
         config = self.pinn_config
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
@@ -417,19 +413,9 @@ class PinnSolver(AbstractSolver):
         message = result.message + (f"; {note}" if note else "")
         if not success:
             return Estimate(m, d, result.iterations, False, message)
-        residuals = trainer.residuals
-        n_data = problem.targets.size
-
-        def swing(theta: np.ndarray) -> np.ndarray:  # the m, d-dependent swing residuals, weighted
-            return residuals(theta)[n_data:].reshape(problem.t_f.size, -1)[:, -n:].reshape(-1)
-
-        f = swing(result.theta)
-        columns = []
-        for k in range(-2 * n, 0):  # log m_1..n, log d_1..n: the residual is linear in exp of each
-            doubled = result.theta.copy()
-            doubled[k] += np.log(2.0)
-            columns.append(swing(doubled) - f)
-        cov, dof, condition = gauss_newton_covariance(np.stack(columns, axis=1), f)
+        cov, dof, condition = linearised_covariance(
+            trainer.jacobian(result.theta), trainer.residuals(result.theta), problem.targets.size, 2 * n,
+            rcond=100 * float(np.finfo(config.dtype).eps))
         return Estimate(m, d, result.iterations, True, message, cov, dof, condition)
 
     # ---- persistence -------------------------------------------------------------------------
