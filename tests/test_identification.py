@@ -8,7 +8,13 @@ import pytest
 
 from harness.suites.identification import observations
 from solvers import make_solver
-from solvers.identification import MAX_CONDITION, Estimate, assess, gauss_newton_covariance, linearised_covariance
+from solvers.identification import (
+    MAX_CONDITION,
+    Estimate,
+    assess,
+    gauss_newton_covariance,
+    linearised_covariance,
+)
 from systems.cases import SMIB_IDENTIFICATION, Observations
 
 CASE = SMIB_IDENTIFICATION
