@@ -65,6 +65,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="keep OUT/rows.jsonl and run only the units of work it does not record as complete "
                           "(what an interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured "
                           "again; failed units are results and are kept); resuming a finished run changes nothing")
+    run.add_argument("--noise-draws", type=int, default=None, metavar="K",
+                     help="identify from K draws of the noise at each noise level above 0 (default 1): the "
+                          "identification table then counts how often each 95 %% interval holds the truth")
     run.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--out", type=Path, default=Path("results"), help="output folder (default results/)")
@@ -127,6 +130,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
+    if args.noise_draws is not None:
+        if args.noise_draws < 1:
+            raise UsageError(f"swingbench run: --noise-draws must be >= 1, got {args.noise_draws}")
+        settings = replace(settings, noise_draws=args.noise_draws)
     if "scaling" in suites and suites != ["scaling"]:
         raise UsageError("swingbench run: --suite scaling runs alone (its units run in processes of their own, "
                          "its PINNs on an iteration budget)")

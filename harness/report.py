@@ -199,7 +199,22 @@ def _uncertainty_columns(g: pd.DataFrame) -> dict:
         inside = g[f"{name}_in_ci95"].dropna().astype(bool)
         out[f"{name} 95% half-width median (%)"] = fmt(half.median())
         out[f"{name} truth in 95% CI"] = f"{int(inside.sum())}/{inside.size}" if inside.size else "n/a"
+        out[f"{name} 95% CI coverage"] = _coverage(g, name)
     return out
+
+
+def _coverage(g: pd.DataFrame, name: str) -> str:
+    """How many of the rows' per-machine 95 % intervals of `name` hold the truth, "k/n (p %)";
+    "n/a" without intervals (or for rows of runs before the per-machine count)."""
+    column = f"{name}_machines_in_ci95"
+    if column not in g:
+        return "n/a"
+    known = g[g[column].notna()]
+    total = int(known["machines"].fillna(1).sum()) if "machines" in known else len(known)
+    if not total:
+        return "n/a"
+    inside = int(known[column].sum())
+    return f"{inside}/{total} ({100 * inside / total:.0f} %)"
 
 
 def _matched_table(frames: dict) -> pd.DataFrame:

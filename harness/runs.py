@@ -79,7 +79,9 @@ class Settings:
     Work-precision sweeps `wp_rtols`; on the multi-machine cases an adapter that is not compiled
     sweeps `network_wp_rtols` (None: `wp_rtols`). Configs in `omit_configs` run only when the command
     line names them. Identification runs over `pairs` x `noise_levels`
-    (relative Gaussian noise) with `n_u` samples, except for configs in `skip_identify_configs`.
+    (relative Gaussian noise, `noise_draws` draws of it at each level above 0: the coverage of the
+    95 % intervals is measured over them) with `n_u` samples, except for configs in
+    `skip_identify_configs`.
     `threads` is recorded with the results. `cases` are the run's forward cases when the command
     line names none; on the multi-machine ones, PINNs run only `network_pinn_configs` (`measures`),
     and identification runs only `network_identify_configs` (at ode45's tolerances a classical
@@ -105,6 +107,7 @@ class Settings:
     points_batch: int = 10000
     pairs: tuple[tuple[float, float], ...] = (PAPER_PAIR, *IDENTIFICATION_PAIRS)
     noise_levels: tuple[float, ...] = (0.0, 0.01)
+    noise_draws: int = 1
     n_u: int = 100
     skip_identify_configs: tuple[str, ...] = ()
     wp_rtols: tuple[float, ...] = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)

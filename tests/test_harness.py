@@ -245,12 +245,12 @@ def test_default_and_full_runs_identify_from_the_papers_data(settings):
     from systems.cases import IDENTIFICATION_PAIRS, SMIB_IDENTIFICATION
 
     assert settings.pairs[0] == PAPER_PAIR == (0.25, 0.15)
-    assert (0, 0.0, "paper ode45") in _runs(SMIB_IDENTIFICATION, settings)
+    assert (0, 0.0, "paper ode45", 0) in _runs(SMIB_IDENTIFICATION, settings)
     assert set(DEFAULT.pairs) <= set(FULL.pairs) == {PAPER_PAIR, *IDENTIFICATION_PAIRS}
     # and a multi-machine case at every noise level the SMIB has (make bench: noise-free only)
     from systems.cases import CASES
 
-    levels = {noise for _, noise, _ in _runs(CASES["wscc9"], settings)}
+    levels = {noise for _, noise, _, _ in _runs(CASES["wscc9"], settings)}
     assert levels == ({0.0} if settings is DEFAULT else set(FULL.noise_levels))
 
 
@@ -277,6 +277,28 @@ def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
     markdown = (tmp_path / "tables.md").read_text()
     assert "identification from the paper's ode45 data (m = 0.25, d = 0.15)" in markdown
     assert "mean error of m / d over 2 (m, d) pair(s)" in markdown
+
+
+def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_coverage(tmp_path):
+    """--noise-draws K: K draws of the noise at each level above 0 (draw 0 the samples of a run
+    without draws), and the table's coverage column counts every machine's interval over them."""
+    from harness.suites.identification import identification, pair_observations
+    from systems.cases import SMIB_IDENTIFICATION
+
+    settings = replace(QUICK, pairs=((0.25, 0.15),), noise_levels=(0.0, 0.01), n_u=60, noise_draws=4)
+    fast = "numba-rk" if solvers.SOLVERS.get("numba-rk") is not None else "scipy-odeint"
+    rows = identification(solvers.make_solver(fast, SMIB_IDENTIFICATION, "tight"), SMIB_IDENTIFICATION, settings)
+    assert [(r["noise"], r["data"], r["draw"]) for r in rows] == [
+        (0.0, "reference", 0), *[(0.01, "reference", k) for k in range(4)], (0.0, "paper ode45", 0)]
+    first = pair_observations(SMIB_IDENTIFICATION, replace(settings, noise_draws=1), 0, 0.01)
+    np.testing.assert_array_equal(pair_observations(SMIB_IDENTIFICATION, settings, 0, 0.01, draw=0).delta, first.delta)
+    assert len({r["m_est"] for r in rows if r["noise"] > 0}) == 4  # four different draws
+    base = {"suite": "identification", "case": "smib-identification", "solver": fast,
+            "config": "tight", "variant": "", "seed": -1, "threads": 2, "status": "ok"}
+    write_report([{**base, **row} for row in rows], tmp_path, {}, plots=False)
+    markdown = (tmp_path / "tables.md").read_text()
+    inside = sum(r["m_machines_in_ci95"] for r in rows if r["noise"] > 0)
+    assert "m 95% CI coverage" in markdown and f"{inside}/4 ({100 * inside / 4:.0f} %)" in markdown
 
 
 @pytest.mark.parametrize("classical_s,verdict", [

@@ -50,23 +50,28 @@ def truths(case: Case, settings: Settings) -> list[tuple[np.ndarray, np.ndarray]
 
 
 def pair_observations(case: Case, settings: Settings, pair_index: int, noise: float,
-                      data: str = REFERENCE_DATA) -> Observations:
+                      data: str = REFERENCE_DATA, draw: int = 0) -> Observations:
     """The observations of truth `pair_index` of `truths` (the rest of `case` fixed) at a
-    noise level: seed 1000 + pair index, so every adapter sees the same samples."""
+    noise level, the `draw`-th draw of its noise: seed 1000 + pair index + 100000 x draw, so every
+    adapter sees the same samples and noise."""
     m, d = truths(case, settings)[pair_index]
-    return observations(case.with_params(m, d), settings.n_u, noise, seed=1000 + pair_index, data=data)
+    return observations(case.with_params(m, d), settings.n_u, noise, seed=1000 + pair_index + 100_000 * draw,
+                        data=data)
 
 
-def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str]]:
-    """(truth index, noise, data) of every identification: each truth at each noise level on the
-    reference (a multi-machine case: `settings.network_noise_levels`), and noise-free on the paper's
-    ode45 data for a pair the paper published data of."""
+def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str, int]]:
+    """(truth index, noise, data, draw) of every identification: each truth at each noise level on
+    the reference (a multi-machine case: `settings.network_noise_levels`), `settings.noise_draws`
+    draws of the noise at a level above 0 (how often an interval holds the truth is measured over
+    them), and noise-free on the paper's ode45 data for a pair the paper published data of."""
     runs = []
     noise_levels = settings.noise_levels if case in SMIB_CASES else settings.network_noise_levels
     for pair_index, (m, d) in enumerate(truths(case, settings)):
-        runs += [(pair_index, noise, REFERENCE_DATA) for noise in noise_levels]
+        for noise in noise_levels:
+            runs += [(pair_index, noise, REFERENCE_DATA, draw)
+                     for draw in range(settings.noise_draws if noise > 0 else 1)]
         if seed_reference(case.with_params(m, d)) is not None:
-            runs.append((pair_index, 0.0, PAPER_DATA))
+            runs.append((pair_index, 0.0, PAPER_DATA, 0))
     return runs
 
 
@@ -79,7 +84,8 @@ def _per_machine(values: np.ndarray) -> float | list[float]:
 def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth: np.ndarray) -> dict:
     """The row's columns of one parameter (m or d): estimates, per-machine relative errors, their
     worst (`{name}_rel_error`) and mean, standard errors, intervals, whether every machine's truth
-    lies in its interval (None when some interval is unknown) and the worst relative half-width."""
+    lies in its interval (None when some interval is unknown), how many machines' intervals hold
+    it and the worst relative half-width."""
     errors = np.abs(est - truth) / np.abs(truth)
     low, high = ci95[:, 0], ci95[:, 1]
     known = bool(np.isfinite(ci95).all())
@@ -89,6 +95,7 @@ def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth
         f"{name}_rel_errors": _per_machine(errors), f"{name}_se": _per_machine(se),
         f"{name}_ci95_low": _per_machine(low), f"{name}_ci95_high": _per_machine(high),
         f"{name}_in_ci95": bool(((low <= truth) & (truth <= high)).all()) if known else None,
+        f"{name}_machines_in_ci95": int(((low <= truth) & (truth <= high)).sum()) if known else None,
         f"{name}_rel_half_width": float(np.max((high - low) / 2 / est)) if known else float("nan"),
     }
 
@@ -109,12 +116,13 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
         return [{"status": f"skipped: config {solver.config} not identified on multi-machine cases (only "
                            f"{', '.join(settings.network_identify_configs)})"}]
     rows = []
-    for pair_index, noise, data in _runs(case, settings):
+    for pair_index, noise, data, draw in _runs(case, settings):
         m, d = truths(case, settings)[pair_index]
-        obs = pair_observations(case, settings, pair_index, noise, data)
+        obs = pair_observations(case, settings, pair_index, noise, data, draw)
         est = solver.identify(obs)
         rows.append({
-            "pair": pair_index, "noise": noise, "data": data, "n_u": settings.n_u, "machines": case.n,
+            "pair": pair_index, "noise": noise, "data": data, "draw": draw, "n_u": settings.n_u,
+            "machines": case.n,
             **_columns("m", est.m, est.m_se, est.m_ci95, m), **_columns("d", est.d, est.d_se, est.d_ci95, d),
             "identify_s": est.seconds, "iterations": est.iterations, "success": est.success,
             "message": est.message,
