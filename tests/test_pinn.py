@@ -331,6 +331,18 @@ def test_a_model_recorded_as_a_case_of_other_data_does_not_load(fitted, tmp_path
     assert not solver.fitted
 
 
+def test_a_model_recorded_as_a_case_that_differs_in_what_no_network_records_does_not_load(fitted, tmp_path):
+    """Inertia and damping shape no layer of the network: a .json edited to another m is caught by
+    the record's hash stored among the weights."""
+    other = dataclasses.replace(CASE, name="smib-heavier", m=(0.8,))
+    _, meta = fitted.save(tmp_path / "model")
+    _record_case(meta, other)
+    with pytest.raises(ValueError) as info:
+        make_solver(fitted.name, other, threads=1).load(tmp_path / "model")
+    assert str(info.value) == (f"{meta}: its config, case or architecture is not what was saved with "
+                               "model.npz (the .json was edited after saving)")
+
+
 # ---- training and identification ------------------------------------------------------------------
 
 

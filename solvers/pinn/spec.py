@@ -553,6 +553,18 @@ def weights_sha256(arrays: Mapping[str, np.ndarray]) -> str:
     return digest.hexdigest()
 
 
+_RECORD_FIELDS = ("config", "case", "architecture", "windows", "identification")
+
+
+def record_sha256(info: Mapping) -> str:
+    """sha256 of what a model's .json says it is (config, case, architecture, windows, the
+    identification's m, d and architecture), as canonical JSON: `save_model` stores it among the
+    weights, so a .json edited after saving (another case's name and data over these weights) no
+    longer matches them."""
+    text = json.dumps({key: info.get(key) for key in _RECORD_FIELDS}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Architecture,
                theta: np.ndarray, identification: dict | None = None,
                windows: np.ndarray | None = None) -> tuple[Path, Path]:
@@ -570,11 +582,13 @@ def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Archi
         info = {"m": np.atleast_1d(np.asarray(identification["m"], np.float64)).tolist(),
                 "d": np.atleast_1d(np.asarray(identification["d"], np.float64)).tolist(),
                 "architecture": identification["arch"].to_json()}
+    record = {"config": config.to_json(), "case": dataclasses.asdict(case), "architecture": arch.to_json(),
+              "windows": None if windows is None else np.asarray(windows, np.float64).tolist(),
+              "identification": info}
+    arrays["record_sha256"] = np.frombuffer(record_sha256(record).encode(), np.uint8)
     text = json.dumps({
-        "format": "swingbench-pinn", "version": FORMAT_VERSION, "saved_by": solver,
-        "config": config.to_json(), "case": dataclasses.asdict(case), "architecture": arch.to_json(),
-        "windows": None if windows is None else np.asarray(windows, np.float64).tolist(),
-        "identification": info, "weights_sha256": weights_sha256(arrays),
+        "format": "swingbench-pinn", "version": FORMAT_VERSION, "saved_by": solver, **record,
+        "weights_sha256": weights_sha256(arrays),
     }, indent=2)
     write_atomically(npz, lambda fh: np.savez(fh, **arrays))
     write_atomically(meta, lambda fh: fh.write(text.encode()))
@@ -725,8 +739,9 @@ def load_model(path) -> dict:
     that is unreadable, of another format version, incomplete, of the wrong shapes, not the weights
     its .json records (`weights_sha256`, format versions 2 and 3: every array, each window's
     included), non-finite, or whose networks are not those of its config for the case it records
-    (`check_model_case`: the .json is not covered by the weights' hash, so an edited case record
-    must not make another case's model load); each message starts with the file."""
+    (`check_model_case`), or whose .json differs from the record saved among the weights
+    (`record_sha256`; files saved before it was stored are checked by `check_model_case` alone);
+    each message starts with the file."""
     npz, meta = _paths(path)
     info = _read_info(meta)
     arrays = _read_arrays(npz)
@@ -755,5 +770,9 @@ def load_model(path) -> dict:
                                     "non-finite weights")
     record = {"config": config, "case": case, "arch": arch, "theta": theta, "windows": windows,
               "identification": identification, "saved_by": info.get("saved_by")}
-    check_model_case(record, case, meta)
+    check_model_case(record, case, meta)  # first: its message names what differs
+    saved = arrays.get("record_sha256")  # files saved before it was stored have none
+    if saved is not None and saved.tobytes().decode(errors="replace") != record_sha256(info):
+        raise CorruptModelError(f"{meta}: its config, case or architecture is not what was saved with "
+                                f"{npz.name} (the .json was edited after saving)")
     return record
