@@ -36,9 +36,10 @@ from harness.paper import paper_table
 from harness.plots import SCALING_PLOTS
 from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import atomic_write, unit_key
+from harness.suites import identification_case
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
-from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
+from systems.cases import CASES, SMIB_IDENTIFICATION, SMIB_INFERENCE
 from systems.reference import OFF_TRAINING
 
 __all__ = ["build_tables", "metadata", "scaling_markdown", "write_report"]
@@ -264,10 +265,14 @@ def _status_table(frames: dict) -> pd.DataFrame:
     return bad[["suite", "case", "solver", "status"]].drop_duplicates()
 
 
+# The paper's own cases: its figures are of these, not of any other SMIB.
+PAPER_CASES = (SMIB_INFERENCE.name, SMIB_IDENTIFICATION.name)
+
+
 def _smib_paper_table(frames: dict) -> pd.DataFrame | None:
-    """The paper's table, for a SMIB case only (the paper's figures are of the SMIB)."""
+    """The paper's table, for the paper's own cases only (its figures are of them)."""
     cases = {c for df in frames.values() if "case" in df for c in df["case"].dropna().unique()}
-    return paper_table(frames) if cases and cases <= set(SMIB_FORWARD) else None
+    return paper_table(frames) if cases and cases <= set(PAPER_CASES) else None
 
 
 TABLES = {
@@ -292,13 +297,14 @@ TABLES = {
 }
 
 
-SMIB_FORWARD = tuple(case.name for case in SMIB_CASES)
-
-
-def _identification_case(name: str) -> str:
-    """The case identification measures for forward case `name` (`harness.suites.identification_case`,
-    by name: the report builds no case)."""
-    return SMIB_IDENTIFICATION.name if name in SMIB_FORWARD else name
+def _identification_case(name: str, identified: set[str]) -> str:
+    """The case identification measures for forward case `name`: the planner's rule
+    (`harness.suites.identification_case`, from the case's kind) on the registered case. A case
+    that has identification rows of its own (`identified`) is its own identification case by that
+    rule, and an unregistered name is taken as its own: then no network is built to say so."""
+    if name in identified or name not in CASES:
+        return name
+    return identification_case(CASES[name]).name
 
 
 def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, pd.DataFrame]]]:
@@ -312,8 +318,9 @@ def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, 
         if suite not in ("identification", "scaling", "fit") and "case" in df:
             names += [n for n in df["case"].dropna().unique() if n not in names]
     ident = frames.get("identification")
+    identified = set(ident["case"].dropna()) if ident is not None and "case" in ident else set()
     if ident is not None and "case" in ident:
-        covered = {_identification_case(n) for n in names}
+        covered = {_identification_case(n, identified) for n in names}
         names += [n for n in ident["case"].dropna().unique() if n not in covered and n not in names]
     sections = []
     for name in names:
@@ -321,7 +328,7 @@ def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, 
         for suite, df in frames.items():
             if suite == "scaling":  # across cases: its own section (`scaling_markdown`)
                 continue
-            case = _identification_case(name) if suite == "identification" else name
+            case = _identification_case(name, identified) if suite == "identification" else name
             part = df[df["case"] == case].dropna(axis=1, how="all").reset_index(drop=True) if "case" in df else df
             if suite == "work_precision" and "rel_l2_delta_coi" in part:
                 part = part.assign(rel_l2_delta=part["rel_l2_delta_coi"].fillna(part["rel_l2_delta"]))

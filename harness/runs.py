@@ -12,7 +12,7 @@ from typing import Any
 from harness.isolation import Limits
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
-from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB_IDENTIFICATION, Case
+from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 
 __all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs"]
 
@@ -135,7 +135,7 @@ class Settings:
         cls = SOLVERS.get(spec.solver)
         if cls is None or not cls.trains:
             return True
-        if case.has_infinite_bus:  # time-marching is for the multi-machine swings, not the SMIB
+        if case.kind == SMIB:  # time-marching is for the multi-machine swings, not the SMIB
             return spec.config != "marching"
         return spec.config in self.network_pinn_configs and spec.seed in (None, self.seeds[0])
 
@@ -152,7 +152,7 @@ class Settings:
 
     def sweep_rtols(self, compiled: bool, case: Case) -> tuple[float, ...]:
         """The tolerances of a work-precision sweep of an adapter (`compiled` or not) on `case`."""
-        if case.has_infinite_bus or compiled or self.network_wp_rtols is None:
+        if case.kind == SMIB or compiled or self.network_wp_rtols is None:
             return self.wp_rtols
         return self.network_wp_rtols
 

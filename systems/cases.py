@@ -18,7 +18,10 @@ __all__ = [
     "CASES",
     "FAMILY_CASES",
     "IDENTIFICATION_PAIRS",
+    "KINDS",
+    "NETWORK",
     "NETWORK_CASES",
+    "SMIB",
     "SMIB_CASES",
     "SMIB_IDENTIFICATION",
     "SMIB_INFERENCE",
@@ -130,6 +133,11 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
+# The kinds of case (`Case.kind`): the one property that says SMIB or multi-machine network.
+SMIB = "smib"
+NETWORK = "network"
+KINDS = (SMIB, NETWORK)
+
 Vector = tuple[float, ...]
 Matrix = tuple[tuple[float, ...], ...]
 
@@ -231,6 +239,14 @@ class Case:
         referenced to it; without one they drift together, and angles are compared to the centre of
         inertia)."""
         return any(self.g_inf) or any(self.b_inf)
+
+    @property
+    def kind(self) -> str:
+        """`SMIB` for a system held by an infinite bus (the paper's single machine against it, any
+        case `smib_case` builds), `NETWORK` for machines coupled only to each other. Everything
+        that treats the two apart (which configs run, what identification measures, which angles
+        are compared) reads this, never a list of cases."""
+        return SMIB if self.has_infinite_bus else NETWORK
 
     def with_params(self, m, d, name: str | None = None) -> Case:
         """The same case with other inertias `m` and dampings `d`: (n,) sequences, or numbers that

@@ -16,13 +16,13 @@ from harness.suites.identification import identification, observations
 from harness.suites.latency import latency
 from harness.suites.scaling import scaling
 from harness.suites.work_precision import work_precision
-from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION, Case
+from systems.cases import SMIB, SMIB_IDENTIFICATION, Case
 
 
 def identification_case(case: Case) -> Case:
     """The case identification measures for a forward case: the paper's own identification case
-    (m = 0.25, with the (m, d) pairs) for a SMIB case, the case itself otherwise."""
-    return SMIB_IDENTIFICATION if case in SMIB_CASES else case
+    (m = 0.25, with the (m, d) pairs) for a SMIB case (`Case.kind`), the case itself otherwise."""
+    return SMIB_IDENTIFICATION if case.kind == SMIB else case
 
 
 @dataclass(frozen=True)

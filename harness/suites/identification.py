@@ -8,7 +8,7 @@ import numpy as np
 
 from harness.runs import Settings
 from solvers.base import AbstractSolver
-from systems.cases import SMIB_CASES, Case, Observations, standard_grid
+from systems.cases import NETWORK, SMIB, Case, Observations, standard_grid
 from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
 
 
@@ -44,7 +44,7 @@ def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0,
 def truths(case: Case, settings: Settings) -> list[tuple[np.ndarray, np.ndarray]]:
     """The (m (n,), d (n,)) p.u. to identify on `case`: the run's (m, d) pairs on a SMIB case (the
     paper's setting), the case's own parameters on a multi-machine one."""
-    if case in SMIB_CASES:
+    if case.kind == SMIB:
         return [(np.array([m]), np.array([d])) for m, d in settings.pairs]
     return [(np.array(case.m), np.array(case.d))]
 
@@ -65,7 +65,7 @@ def _runs(case: Case, settings: Settings) -> list[tuple[int, float, str, int]]:
     draws of the noise at a level above 0 (how often an interval holds the truth is measured over
     them), and noise-free on the paper's ode45 data for a pair the paper published data of."""
     runs = []
-    noise_levels = settings.noise_levels if case in SMIB_CASES else settings.network_noise_levels
+    noise_levels = settings.noise_levels if case.kind == SMIB else settings.network_noise_levels
     for pair_index, (m, d) in enumerate(truths(case, settings)):
         for noise in noise_levels:
             runs += [(pair_index, noise, REFERENCE_DATA, draw)
@@ -110,9 +110,9 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
     if solver.config in settings.skip_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
                            "(--full runs it)"}]
-    if case not in SMIB_CASES and case.name not in settings.network_identify_cases:
+    if case.kind == NETWORK and case.name not in settings.network_identify_cases:
         return [{"status": f"skipped: {case.name} not identified in the {settings.name} run (--full runs it)"}]
-    if case not in SMIB_CASES and solver.config not in settings.network_identify_configs:
+    if case.kind == NETWORK and solver.config not in settings.network_identify_configs:
         return [{"status": f"skipped: config {solver.config} not identified on multi-machine cases (only "
                            f"{', '.join(settings.network_identify_configs)})"}]
     rows = []
