@@ -1,7 +1,7 @@
 """Derived comparisons from the rows of a run: pure pandas/numpy, no measurement, no I/O.
 
-Classical adapters are the rows with seed == -1; trained adapters (PINNs) have seed >= 0. Every
-comparison is between rows of the same run.
+Trained adapters (PINNs) are the rows whose adapter declares it (`trains`), with their seed; the
+others, classical adapters, have seed -1. Every comparison is between rows of the same run.
 """
 
 from __future__ import annotations
@@ -69,7 +69,11 @@ def identification_data(df: pd.DataFrame) -> pd.Series:
 
 
 def trained(df: pd.DataFrame) -> pd.Series:
-    return df["seed"].fillna(-1).astype(int) >= 0
+    """Rows of adapters that train (the rows' `trains`, as the adapter declares it; rows without
+    it, of an adapter that is not installed or of runs before the column: none)."""
+    if "trains" not in df:
+        return pd.Series(False, index=df.index)
+    return df["trains"].eq(True)  # NaN (no declaration) is not True
 
 
 def fmt(x: float, digits: int = 3) -> str:

@@ -20,14 +20,12 @@ from harness.store import atomic_write
 from harness.versions import library_versions
 from solvers.base import AbstractSolver, FitReport
 
-__all__ = ["CACHE_FORMAT", "QUERY_ONLY_OPTIONS", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version",
-           "load_cached", "store_cached"]
+__all__ = ["CACHE_FORMAT", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version", "load_cached",
+           "store_cached"]
 
 _ROOT = Path(__file__).resolve().parents[1]
 
 
-# Options that change how a trained model is used, never the model itself.
-QUERY_ONLY_OPTIONS = frozenset({"threads", "progress", "query"})
 # Libraries whose arithmetic makes the training data (scipy's DOP853 reference) or the model.
 TRAINING_LIBRARIES = ("numpy", "scipy", "torch", "jax", "jaxlib")
 # The layout of an entry (part of the key: entries of another layout are never read).
@@ -46,15 +44,16 @@ def code_version() -> str:
 
 
 def Persistable(solver: AbstractSolver) -> bool:
-    """Whether the adapter can save and load trained models."""
-    return callable(getattr(solver, "save", None)) and callable(getattr(solver, "load", None))
+    """Whether the adapter can save and load trained models (it declares `can_save`)."""
+    return type(solver).can_save
 
 
 def cache_key(solver: AbstractSolver) -> str:
     """The file stem of `solver`'s trained model: adapter, config, every option that changes
-    training (not `QUERY_ONLY_OPTIONS`: threads change the speed of training, and its result only
-    by floating-point summation order), case, code and library versions, the cache's format."""
-    options = {k: v for k, v in solver.options.items() if k not in QUERY_ONLY_OPTIONS}
+    training (not the adapter's `QUERY_OPTIONS`: e.g. threads change the speed of training, and its
+    result only by floating-point summation order), case, code and library versions, the cache's
+    format."""
+    options = {k: v for k, v in solver.options.items() if k not in type(solver).QUERY_OPTIONS}
     payload = json.dumps({"solver": solver.name, "config": solver.config, "options": options,
                           "case": solver.case.__dict__, "code": code_version(),
                           "libraries": library_versions(TRAINING_LIBRARIES), "cache_format": CACHE_FORMAT},

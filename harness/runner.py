@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.isolation import OverLimit, call_isolated
-from harness.model_cache import QUERY_ONLY_OPTIONS, Persistable, load_cached, store_cached
+from harness.model_cache import Persistable, load_cached, store_cached
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents, unit_key
 from harness.suites import SUITES, Suite
@@ -81,13 +81,13 @@ class Unit:
         return f"{self.spec.label} {self.case.name}"
 
     def make(self, settings: Settings) -> AbstractSolver:
-        """Its adapter, built on its case (not fitted), as every unit of work of it runs: with the
-        run's thread count for an adapter with a `threads` option the spec does not set. Raises
-        the adapter's ValueError for an option invalid on the case or on this machine."""
+        """Its adapter, built on its case (not fitted), as every unit of work of it runs: an adapter
+        that `takes_threads` gets the run's thread count unless the spec sets one. Raises the
+        adapter's ValueError for an option invalid on the case or on this machine."""
         cls = solver_class(self.spec.solver)
         given = dict(self.spec.options)
-        extra = {"threads": settings.threads} if cls is not None and "threads" in cls.OPTIONS \
-            and "threads" not in given else {}
+        extra = {"threads": settings.threads} if cls is not None and cls.takes_threads and "threads" not in given \
+            else {}
         return self.spec.make(self.case, **extra)
 
 
@@ -97,10 +97,10 @@ def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
 
 
 def _query_variant(spec: SolverSpec, cls: type[AbstractSolver] | None) -> bool:
-    """Whether `spec` sets an option that only changes how a model is queried (a trained model:
-    `QUERY_ONLY_OPTIONS`; the adapter's own `QUERY_OPTIONS`), so that its suites that measure no
-    queries would repeat those of the spec without it: they do not run."""
-    query_only = QUERY_ONLY_OPTIONS | (cls.QUERY_OPTIONS if cls is not None else frozenset())
+    """Whether `spec` sets an option that only changes how a model is queried (the adapter's
+    `QUERY_OPTIONS`), so that its suites that measure no queries would repeat those of the spec
+    without it: they do not run."""
+    query_only = cls.QUERY_OPTIONS if cls is not None else frozenset()
     return any(key in query_only for key, _ in spec.options)
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from harness.analysis import break_even, fmt, label, ok
+from harness.analysis import break_even, fmt, label, ok, trained
 
 __all__ = ["COSTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_frame", "scaling_table", "status_by_n"]
 
@@ -35,7 +35,7 @@ def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
         scaling = scaling.assign(fit_s=np.nan)
     out = pd.DataFrame({
         "case": scaling["case"], "N": scaling["machines"].astype(int), "label": label(scaling),
-        "solver": scaling["solver"], "trains": scaling["seed"] >= 0,
+        "solver": scaling["solver"], "trains": trained(scaling),
         "prep_s": scaling["fit_s"], "grid_s": scaling["grid_median_s"], "point_s": scaling["point_median_s"],
         "peak_rss_mib": scaling.get("peak_rss_mib", pd.Series(np.nan, index=scaling.index)),
         "rel_l2": scaling["rel_l2"], "n_trajectories": scaling["n_trajectories"],

@@ -11,8 +11,8 @@ SPEC is a JSON file::
       "solver": "torch-pinn",              # a registered adapter (required)
       "config": "default",                 # one of its named configs (default "default")
       "cases": ["smib-inference"],         # systems.cases.CASES names (default ["smib-inference"])
-      "seeds": [0, 1, 2],                  # only for adapters that train (a `seed` option);
-                                           # default [0]; adapters without one take no "seeds"
+      "seeds": [0, 1, 2],                  # only for adapters that train (`trains`);
+                                           # default [0]; other adapters take no "seeds"
       "grid": {"width": [10, 20],          # option -> the values to sweep (non-empty lists);
                "n_f": [2000, 8000]},       # the runs are their cartesian product
       "options": {"max_iterations": 500},  # fixed option overrides for every run (default {})
@@ -171,7 +171,7 @@ def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
     if len(set(cases)) != len(cases):
         raise ValueError(f"'cases' lists a case twice: {cases!r}")
 
-    trains = "seed" in cls.OPTIONS
+    trains = cls.trains
     if "seeds" in raw and not trains:
         raise ValueError(f"'seeds': {solver} takes no seed (it does not train); drop 'seeds'")
     seeds = raw.get("seeds", [0]) if trains else [None]

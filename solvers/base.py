@@ -135,15 +135,22 @@ class AbstractSolver(abc.ABC):
     An adapter that is only valid on the trained domain sets `bounded_domain = True`: `solve` then
     rejects t outside [0, t_final] or P1 outside [p1_min, p1_max] unless `extrapolate=True`.
 
-    Capabilities are declared, not guessed from option names:
+    Capabilities are declared here, once, and read everywhere; nothing infers them from option
+    names (`tests/test_plan.py` checks each declaration against the adapter's options):
     - `trains`: `fit` trains a model from a seed (option `seed`); runs repeat it over seeds;
+    - `has_tolerance`: relative and absolute tolerances (options `rtol`, `atol`) set its accuracy;
+    - `takes_threads`: option `threads` sets its thread count; runs give it theirs;
+    - `can_save`: `save(path)` writes a fitted model and `load(path)` reads it back (the model
+      cache keeps trained models so);
     - `compiled`: queries run in compiled code (numba, XLA), not a Python-driven integrator loop;
       the verdicts rank the best Python-driven and the best compiled classical option apart;
     - `does_work`: False only for the do-nothing adapter that measures the interface itself;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
       mode, a compiled query path);
-    - `QUERY_OPTIONS`: its options that change only how `solve` runs, never what `identify` does
-      (a variant that sets only these is not identified again);
+    - `QUERY_OPTIONS`: its options that change only how a model is queried or how fast it is
+      made, never what `fit` or `identify` compute (threads: up to the order of floating-point
+      sums): a variant that sets only these is not identified again, and the model cache leaves
+      them out of a trained model's key;
     - `blas_threads`: the BLAS thread count its queries are timed with, when it is not the run's
       (the fastest for the adapter, measured; see the class that sets it);
     - `precision_sweep(rtols)`: the option overrides of the work-precision curve (an adaptive
@@ -156,6 +163,9 @@ class AbstractSolver(abc.ABC):
     CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
     bounded_domain: ClassVar[bool] = False
     trains: ClassVar[bool] = False
+    has_tolerance: ClassVar[bool] = False
+    takes_threads: ClassVar[bool] = False
+    can_save: ClassVar[bool] = False
     compiled: ClassVar[bool] = False
     does_work: ClassVar[bool] = True
     blas_threads: ClassVar[int | None] = None
@@ -165,9 +175,9 @@ class AbstractSolver(abc.ABC):
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
         """Option overrides, one dict per point of this adapter's work-precision curve, from the
         run's relative tolerances `rtols`. Default: a tolerance sweep (rtol, atol = rtol / 1000)
-        for an adapter with an `rtol` option, else no curve (the adapter is a single point).
+        for an adapter that `has_tolerance`, else no curve (the adapter is a single point).
         A fixed-step adapter overrides this to sweep its step."""
-        if "rtol" not in self.OPTIONS:
+        if not self.has_tolerance:
             return []
         return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
 

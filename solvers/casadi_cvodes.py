@@ -93,6 +93,9 @@ class CasadiCVODES(AbstractSolver):
     SCHEMA = CVODESOptions
     # adams: the non-stiff method at ode45's tolerances, for large systems (see above)
     CONFIGS: ClassVar[dict[str, dict]] = {**TOLERANCE_CONFIGS, "adams": {"method": "adams", "newton": "functional"}}
+    has_tolerance = True
+    takes_threads = True
+    QUERY_OPTIONS = frozenset({"threads"})
 
     def _make_caches(self) -> None:
         self._integrators = lru_cache(maxsize=32)(self._build)

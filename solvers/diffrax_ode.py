@@ -189,6 +189,9 @@ class DiffraxODE(AbstractSolver):
     compiled: ClassVar[bool] = True
     SCHEMA = DiffraxOptions
     CONFIGS = TOLERANCE_CONFIGS
+    has_tolerance = True
+    takes_threads = True
+    QUERY_OPTIONS = frozenset({"threads"})  # its `batch` changes identification's error control: not here
     FIT_SHAPES: ClassVar[tuple[tuple[int, int], ...]] = (
         (201, 100), (201, 1), (201, 10), (201, 1000), (201, 10000), (1, 1),
     )

@@ -61,6 +61,9 @@ class NumbaRK(AbstractSolver):
     compiled: ClassVar[bool] = True
     SCHEMA = NumbaRKOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {**TOLERANCE_CONFIGS, "rk4": {"method": "rk4"}}
+    has_tolerance = True
+    takes_threads = True
+    QUERY_OPTIONS = frozenset({"threads"})
     # P1 over numba's threads: ~1.9x faster on the grid on an idle machine, 20-50x slower when other
     # processes load the cores (measured, 2 cores); runs measure both, the verdicts take the faster.
     VARIANTS = ({"parallel": True},)

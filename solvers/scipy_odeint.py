@@ -36,6 +36,7 @@ class ScipyOdeint(AbstractSolver):
     name: ClassVar[str] = "scipy-odeint"
     SCHEMA = ToleranceOptions
     CONFIGS = TOLERANCE_CONFIGS
+    has_tolerance = True
     # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
     # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,
     # the 100 x 201 grid, rtol 1e-3: 97-216 ms on 2 BLAS threads, 20-32 ms on 1; at 1e-10, 12.7 ms

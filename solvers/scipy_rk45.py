@@ -50,6 +50,7 @@ class ScipyRK45(AbstractSolver):
     method: ClassVar[str] = "RK45"
     SCHEMA = RK45Options
     CONFIGS = TOLERANCE_CONFIGS
+    has_tolerance = True
     VARIANTS = ({"batch": "stacked"},)
     QUERY_OPTIONS = frozenset({"batch"})  # `identify` integrates one P1 at a time in either mode
 

@@ -187,8 +187,8 @@ def test_time_at_accuracy_interpolates_on_the_pareto_front():
 def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
     """Synthetic rows (no measurement): the report's verdicts follow the numbers."""
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
-    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0}
-    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1}
+    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0, "trains": True}
+    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1, "trains": False}
     rows = [
         {"suite": "fit", **pinn, "fit_s": 50.0, "iterations": 100, "loss": 1e-6, "message": ""},
         {"suite": "fit", **ode, "fit_s": 1e-5, "iterations": 0, "loss": np.nan, "message": ""},
@@ -310,8 +310,8 @@ def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
     from harness.report import suite_frames
 
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
-    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0}
-    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1}
+    pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0, "trains": True}
+    ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1, "trains": False}
     rows = [
         {"suite": "accuracy", **pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-3},
         {"suite": "accuracy", **ode, "quantity": "delta", "against": "reference", "rel_l2": 1e-4},

@@ -12,7 +12,7 @@ import pytest
 from conftest import THREE_MACHINES
 
 from harness import model_cache
-from harness.model_cache import QUERY_ONLY_OPTIONS, cache_key, store_cached
+from harness.model_cache import cache_key, store_cached
 from harness.runner import fit_or_load
 from harness.runs import QUICK
 from solvers import make_solver
@@ -174,11 +174,12 @@ def _other(value):
 def test_the_key_covers_every_training_option_and_no_query_only_one(monkeypatch):
     base = _solver()
     key = cache_key(base)
-    assert set(QUERY_ONLY_OPTIONS) <= set(base.options)
+    query_only = type(base).QUERY_OPTIONS  # declared by the adapter: threads, progress, query
+    assert query_only and set(query_only) <= set(base.options)
     for name, value in base.options.items():
         other = _solver()
         other.options[name] = _other(value)
-        assert (cache_key(other) == key) == (name in QUERY_ONLY_OPTIONS), name
+        assert (cache_key(other) == key) == (name in query_only), name
     assert cache_key(make_solver("torch-pinn", SMIB_IDENTIFICATION, **TINY)) != key
     assert cache_key(make_solver("torch-pinn", CASE, "paper", **TINY)) != key
     for name, fake in [("CACHE_FORMAT", model_cache.CACHE_FORMAT + 1), ("code_version", lambda: "other"),

@@ -102,7 +102,8 @@ def _frame(rows: list[dict]) -> pd.DataFrame:
     base = {"config": "default", "variant": "", "status": "ok"}
     full = []
     for r in rows:
-        common = {**base, "case": f"n{r['N']}", "solver": r["solver"], "seed": r.get("seed", -1)}
+        common = {**base, "case": f"n{r['N']}", "solver": r["solver"], "seed": r.get("seed", -1),
+                  "trains": "seed" in r}  # as the adapter declares it: the rows with a seed train
         full.append({**common, "suite": "fit", "fit_s": r["fit_s"]})
         full.append({**common, "suite": "scaling", "machines": r["N"], "grid_median_s": r["grid_s"],
                      "point_median_s": r["grid_s"] / 10, "rel_l2": r["rel_l2"], "n_trajectories": 4})

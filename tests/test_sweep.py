@@ -32,6 +32,8 @@ class FakeTrainer(AbstractSolver):
 
     name = "fake-trainer"
     OPTIONS: ClassVar = {"seed": 0, "width": 10, "threads": 1, "progress": True}
+    trains = True
+    takes_threads = True
 
     def _check_options(self):
         if self.options["width"] < 1:

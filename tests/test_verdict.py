@@ -126,7 +126,8 @@ def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy(
     from harness.analysis import COI_DELTA, GRID_QUERY, ladder, verdict_rows
 
     base = {"case": "wscc9", "config": "default", "variant": "", "status": "ok"}
-    pinn, ode = {**base, "solver": "toy-pinn", "seed": 0}, {**base, "solver": "ode", "seed": -1}
+    pinn = {**base, "solver": "toy-pinn", "seed": 0, "trains": True}
+    ode = {**base, "solver": "ode", "seed": -1, "trains": False}
     acc = pd.DataFrame([
         {**pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-5},
         {**pinn, "quantity": COI_DELTA, "against": "reference", "rel_l2": 2e-5},

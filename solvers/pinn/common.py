@@ -236,8 +236,11 @@ class PinnSolver(AbstractSolver):
 
     bounded_domain: ClassVar[bool] = True
     trains: ClassVar[bool] = True
+    takes_threads: ClassVar[bool] = True
+    can_save: ClassVar[bool] = True
     # the compiled query path of the same trained model (the model cache ignores `query`)
     VARIANTS: ClassVar[tuple[dict[str, Any], ...]] = ({"query": "numba"},)
+    QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads", "progress", "query"})
     SCHEMA = PinnOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
 
