@@ -16,8 +16,8 @@ identify on that case's identification case (`harness.suites.identification_case
 truth). `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
 `harness.runs.default_specs` (the adapter's named config plus its option overrides other than the
 training budget, e.g. "default,batch=stacked"). A triple that the harness does not run (a pair it
-does not run, or a spec that `Settings.measures` leaves out on the case, e.g. a PINN config other
-than `network_pinn_configs` on a network) is skipped without a process (asv `skip_params`); an
+does not run, or a spec that the planner leaves off the case, `harness.plan.not_on_case`, e.g. a
+PINN config not made for networks on a network) is skipped without a process (asv `skip_params`); an
 adapter whose optional dependency is missing is skipped in setup (NotImplementedError, with the
 reason in asv's output). A case that fails to build (see `CASE_ERRORS`) or a triple whose
 preparation failed fails its own benchmarks (RuntimeError in setup), so `asv run` exits non-zero.
@@ -45,9 +45,10 @@ from typing import Any
 import numpy as np
 
 from benchmarks import THREADS
+from harness.plan import left_out, not_on_case
 from harness.runner import fit_or_load
 from harness.runs import DEFAULT, QUICK, Settings, SolverSpec, default_specs
-from harness.suites import identification_case
+from harness.suites import SUITES, identification_case
 from harness.suites.accuracy import COI_DELTA, accuracy
 from harness.suites.identification import identification, pair_observations
 from harness.suites.latency import T1_S, queries
@@ -91,8 +92,8 @@ SETTINGS: Settings = replace(
     pinn_options={"max_iterations": TRAIN_ITERATIONS, "id_max_iterations": TRAIN_ITERATIONS, "progress": False},
     pairs=QUICK.pairs,
     noise_levels=QUICK.noise_levels,
-    skip_identify_configs=(),
-    omit_configs=(),  # asv tracks every config, the two-output ones too
+    skip_identify_marks=(),
+    omit_marks=(),  # asv tracks every config, the ablations (two-output PINNs) too
     cache_dir=_repo_root() / ".cache" / "models",
     # `make asv-quick` (CI) checks that every benchmark runs, on the SMIB: a multi-machine grid takes
     # scipy-rk45 [tight] ~60 s a call (the unit tests run every adapter on wscc9; `make asv`, every case)
@@ -168,9 +169,9 @@ COI = Measured(lambda case: case, lambda case: not case.has_infinite_bus,
 def _skip_params(measured: Measured) -> list[tuple[str, str, str]]:
     """The triples of an installed adapter that asv skips without a process (`skip_params`): a
     (solver, config) pair the harness does not run (e.g. scipy-odeint with batch=stacked), every
-    triple of a forward case that `measured` does not run on, and a spec that `SETTINGS.measures`
-    leaves out on the case measured (e.g. a PINN config other than `network_pinn_configs` on a
-    network). A case that could not be built skips nothing: its benchmarks fail in setup. Adapters
+    triple of a forward case that `measured` does not run on, and a spec that the planner leaves
+    off the case measured (`harness.plan.not_on_case`, e.g. a PINN config not made for networks
+    on a network). A case that could not be built skips nothing: its benchmarks fail in setup. Adapters
     that are not installed are skipped in setup instead, with the reason ("skipped: torch not
     installed") in asv's output."""
     skipped = []
@@ -182,7 +183,7 @@ def _skip_params(measured: Measured) -> list[tuple[str, str, str]]:
             for config in PARAMS[2]:
                 spec = SPECS.get((solver, config))
                 if spec is None or (case is not None and (
-                        not measured.runs_on(case) or not SETTINGS.measures(spec, measured.case_of(case)))):
+                        not measured.runs_on(case) or not_on_case(spec, measured.case_of(case), SETTINGS) is not None)):
                     skipped.append((name, solver, config))
     return skipped
 
@@ -195,8 +196,8 @@ COI_SKIP_PARAMS = _skip_params(COI)
 def spec_for(case: str, solver: str, config: str, measured: Measured = FORWARD) -> SolverSpec:
     """The harness's spec for a parameter triple; NotImplementedError (asv: skipped) when the adapter
     is not installed, the pair is not one the harness runs, `measured` does not run on the case or
-    `SETTINGS.measures` leaves the spec out on the case measured; RuntimeError (asv: failed) when
-    the case could not be built."""
+    the planner leaves the spec off the case measured (`harness.plan.not_on_case`); RuntimeError
+    (asv: failed) when the case could not be built."""
     if SOLVERS.get(solver) is None:
         raise NotImplementedError(f"{solver}: {UNAVAILABLE.get(solver, 'not registered')}")
     spec = SPECS.get((solver, config))
@@ -206,18 +207,22 @@ def spec_for(case: str, solver: str, config: str, measured: Measured = FORWARD) 
     if not measured.runs_on(forward):
         raise NotImplementedError(f"{case}: {measured.why_not}")
     target = measured.case_of(forward)
-    if not SETTINGS.measures(spec, target):
-        raise NotImplementedError(f"{spec.label} is not measured on {target.name}")
+    reason = not_on_case(spec, target, SETTINGS)
+    if reason is not None:
+        raise NotImplementedError(f"{spec.label} on {target.name}: {reason}")
     return spec
 
 
 def cached_entry(cache: dict, case: str, solver: str, config: str, measured: Measured = FORWARD) -> dict:
     """The `setup_cache` result for a parameter triple: skipped or failed as `spec_for` says,
+    skipped when the run's settings leave its suite out there (`harness.plan.left_out`),
     RuntimeError (asv: failed) when its preparation failed."""
     spec = spec_for(case, solver, config, measured)
     entry = cache.get((case, solver, config))
     if entry is None:
         raise RuntimeError(f"{spec.label} on {case}: setup_cache has no result for it")
+    if "skipped" in entry:
+        raise NotImplementedError(f"{spec.label} on {case}: {entry['skipped']}")
     if "error" in entry:
         raise RuntimeError(f"{spec.label} on {case}: preparation failed in setup_cache: {entry['error']}")
     return entry
@@ -238,7 +243,7 @@ def _measured(measured: Measured) -> list[tuple[tuple[str, str, str], SolverSpec
             continue
         target = measured.case_of(case)
         out += [((name, *key), spec, target) for key, spec in SPECS.items()
-                if SOLVERS.get(spec.solver) is not None and SETTINGS.measures(spec, target)]
+                if SOLVERS.get(spec.solver) is not None and not_on_case(spec, target, SETTINGS) is None]
     return out
 
 
@@ -284,6 +289,10 @@ def identify_all() -> dict:
             traceback.print_exc()
             out[("observations failed", name)] = f"{type(exc).__name__}: {exc}"
     for key, spec, case in _measured(IDENTIFICATION):
+        reason = left_out(spec, case, SUITES["identification"], SETTINGS, ("those declared to identify networks",))
+        if reason is not None:
+            out[key] = {"skipped": reason}
+            continue
         try:
             rows = identification(spec.make(case), case, SETTINGS)
         except Exception as exc:  # noqa: BLE001

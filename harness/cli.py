@@ -46,8 +46,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help="adapters to run (default: every registered one)")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
-                     help="named configurations to run (default: every config of each adapter but the "
-                          "two-output PINNs)")
+                     help="named configurations to run (default: every config of each adapter but those the "
+                          "run leaves out: make bench the ablations, such as the two-output PINNs, and the configs "
+                          "for large systems, which the scaling suite runs)")
     run.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                      help="set an adapter option in every selected adapter that has it (repeatable; VALUE "
                           "read as JSON where it is, e.g. --option optimizer=lbfgs --option max_iterations=100); "
@@ -114,8 +115,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from harness import executors
     from harness.isolation import Limits
+    from harness.plan import plan
     from harness.report import metadata, write_report
-    from harness.runner import check_units, execute, interrupted_message, open_results, outcome, plan
+    from harness.runner import check_units, execute, interrupted_message, open_results, outcome
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
@@ -155,7 +157,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             specs = with_options(specs, dict(parse_option(text) for text in args.option))
         except ValueError as exc:
             raise UsageError(f"swingbench run: --option: {exc}") from None
-    units = plan(specs, cases, [SUITES[name] for name in suites], settings)
+    units = plan(specs, cases, [SUITES[name] for name in suites], settings).units
     try:  # every option on every case it runs on, before the first measurement
         check_units(units, settings)
     except ValueError as exc:

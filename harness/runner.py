@@ -1,10 +1,11 @@
 """One runner for `swingbench run` and `swingbench sweep`.
 
-`plan` (or a sweep's grid) gives units: one solver specification on one case with the suites to
-measure on it, built and fitted once. `check_units` builds (does not fit) every unit's adapter
-before anything is measured, so that an option value invalid on one of the cases stops the command
-at once. `execute` skips the units of work (a suite of a unit, or its fit) whose completion the
-store already records, runs the rest on an executor (in this process, joblib or Dask:
+`harness.plan.plan` (or a sweep's grid) gives units: one solver specification on one case with the
+suites to measure on it, built and fitted once (and those the run's settings leave out there,
+recorded as skipped). `check_units` builds (does not fit) every unit's adapter before anything is
+measured, so that an option value invalid on one of the cases stops the command at once.
+`execute` skips the units of work (a suite of a unit, or its fit) whose completion the store
+already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.executors`) and records each unit of work as it completes, with its rows in one write
 (`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
 says afterwards, in one line, which units failed, and gives the command's exit status.
@@ -22,15 +23,16 @@ import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from harness.isolation import OverLimit, call_isolated
 from harness.model_cache import Persistable, load_cached, store_cached
+from harness.plan import FIT, Unit, plan
 from harness.runs import Settings, SolverSpec
-from harness.store import RowStore, StoreContents, unit_key
-from harness.suites import SUITES, Suite
+from harness.store import RowStore, StoreContents
+from harness.suites import SUITES
 from harness.timing import blas_threads, pinned_threads
 from harness.usage import EXIT_FAILED, UsageError
 from solvers import UNAVAILABLE, solver_class
@@ -39,96 +41,6 @@ from systems.cases import Case
 
 __all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "interrupted_message",
            "open_results", "outcome", "plan", "run_suites", "run_unit"]
-
-FIT = "fit"  # the unit of work that records a trained (or built) adapter's preparation cost
-
-
-@dataclass(frozen=True)
-class Unit:
-    """One solver specification on one case and the suites to measure on it, in one process: the
-    adapter is built (and fitted) once. `columns` are extra constant columns of its rows (a sweep's
-    grid point). Plain, picklable values: executors ship units to worker processes."""
-
-    case: Case
-    spec: SolverSpec
-    suites: tuple[str, ...]
-    columns: tuple[tuple[str, Any], ...] = ()
-
-    def works(self) -> list[str]:
-        """Its units of work, in run order: the fit (when a suite needs a fitted adapter that is
-        installed), then the suites."""
-        needs_fit = solver_class(self.spec.solver) is not None and any(SUITES[s].needs_fit for s in self.suites)
-        return [FIT, *self.suites] if needs_fit else list(self.suites)
-
-    def base(self, settings: Settings) -> dict:
-        """The columns every row of this unit carries (without `suite`)."""
-        base = {"case": self.case.name, **self.spec.key(), "threads": settings.threads, **dict(self.columns)}
-        cls = solver_class(self.spec.solver)
-        if cls is not None:
-            base.update(trains=cls.trains, compiled=cls.compiled, does_work=cls.does_work,
-                        blas_threads=cls.blas_threads or settings.threads)
-        return base
-
-    def work_key(self, work: str) -> dict[str, Any]:
-        """The columns that name its unit of work `work` (`harness.store.UNIT_COLUMNS`)."""
-        return {"suite": work, "case": self.case.name, **self.spec.key()}
-
-    def key(self, work: str) -> tuple:
-        return unit_key(self.work_key(work))
-
-    @property
-    def label(self) -> str:
-        return f"{self.spec.label} {self.case.name}"
-
-    def make(self, settings: Settings) -> AbstractSolver:
-        """Its adapter, built on its case (not fitted), as every unit of work of it runs: an adapter
-        that `takes_threads` gets the run's thread count unless the spec sets one. Raises the
-        adapter's ValueError for an option invalid on the case or on this machine."""
-        cls = solver_class(self.spec.solver)
-        given = dict(self.spec.options)
-        extra = {"threads": settings.threads} if cls is not None and cls.takes_threads and "threads" not in given \
-            else {}
-        return self.spec.make(self.case, **extra)
-
-
-def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
-    seeds = [s.seed for s in specs if (s.solver, s.config, s.options) == (spec.solver, spec.config, spec.options)]
-    return spec.seed is None or spec.seed == min(seeds)
-
-
-def _query_variant(spec: SolverSpec, cls: type[AbstractSolver] | None) -> bool:
-    """Whether `spec` sets an option that only changes how a model is queried (the adapter's
-    `QUERY_OPTIONS`), so that its suites that measure no queries would repeat those of the spec
-    without it: they do not run."""
-    query_only = cls.QUERY_OPTIONS if cls is not None else frozenset()
-    return any(key in query_only for key, _ in spec.options)
-
-
-def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settings: Settings | None = None,
-         ) -> list[Unit]:
-    """The units of `swingbench run` in run order: the forward cases first, then suites with a case
-    of their own (`Suite.own_case`, e.g. the SMIB's identification case), each case once; suites that
-    are not measured for every seed run on the first seed only; with `settings`, only the specs
-    it `measures` on each case, with the training budget it gives that case (`Settings.budgeted`)."""
-    targets: dict[Case, list[Suite]] = {case: [s for s in suites if s.own_case is None] for case in cases}
-    for suite in suites:
-        if suite.own_case is not None:
-            for case in cases:
-                group = targets.setdefault(suite.own_case(case), [])
-                if suite not in group:
-                    group.append(suite)
-    units = []
-    for case, group in targets.items():
-        for spec in specs:
-            if settings is not None and not settings.measures(spec, case):
-                continue
-            cls = solver_class(spec.solver)
-            chosen = [s.name for s in group if (s.every_seed or _first_seed(spec, specs))
-                      and (cls is None or s.applies(cls)) and (s.queries or not _query_variant(spec, cls))]
-            if chosen:
-                units.append(Unit(case, spec if settings is None else settings.budgeted(spec, case), tuple(chosen)))
-    return units
-
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
@@ -209,12 +121,17 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
         for work in todo:
             yield work, [{"suite": work, **base, "status": UNAVAILABLE[unit.spec.solver]}]
         return
+    skipped = dict(unit.skipped)  # the plan's: recorded, not measured
+    if all(work in skipped for work in todo):  # nothing to measure: the adapter is not built
+        for work in todo:
+            yield work, [{"suite": work, **base, "status": skipped[work], "work_s": 0.0}]
+        return
     suites = [w for w in todo if w != FIT]
     with blas_threads(cls.blas_threads):
         try:
             start = time.perf_counter()
             solver = unit.make(settings)
-            if any(SUITES[s].needs_fit for s in suites) or FIT in todo:
+            if any(SUITES[s].needs_fit for s in suites if s not in skipped) or FIT in todo:
                 report = fit_or_load(solver, settings)
                 if FIT in todo:
                     yield FIT, [{"suite": FIT, **base, "status": "ok", "fit_s": report.seconds,
@@ -229,7 +146,7 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
         for suite in suites:
             start = time.perf_counter()
             try:
-                rows = SUITES[suite].run(solver, unit.case, settings)
+                rows = [{"status": skipped[suite]}] if suite in skipped else SUITES[suite].run(solver, unit.case, settings)
             except Exception as exc:  # noqa: BLE001
                 print(f"[swingbench] {unit.label} {suite}: {_failure(exc)}", file=sys.stderr)
                 traceback.print_exc()
@@ -347,7 +264,7 @@ def run_suites(
     unknown = [s for s in names if s not in SUITES]
     if unknown:
         raise ValueError(f"unknown suite(s) {', '.join(unknown)}; known: {', '.join(SUITES)}")
-    units = plan(list(specs), list(cases), [SUITES[n] for n in names], settings)
+    units = plan(list(specs), list(cases), [SUITES[n] for n in names], settings).units
     check_units(units, settings)
     done = store.prepare_resume().completed if resume else set()
     return execute(units, settings, store, progress=progress, done=done)

@@ -11,7 +11,7 @@ from typing import Any
 
 from harness.isolation import Limits
 from solvers import INTERFACE, SOLVERS, make_solver
-from solvers.base import AbstractSolver
+from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 
 __all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs"]
@@ -23,7 +23,7 @@ class SolverSpec:
     for adapters that train, a seed."""
 
     solver: str
-    config: str = "default"
+    config: str = DEFAULT_CONFIG
     options: tuple[tuple[str, Any], ...] = ()
     seed: int | None = None
 
@@ -61,9 +61,6 @@ SCALING_CASES = ("wscc9", "ieee39", "case118", "case300", "case1354pegase", "cas
 # PINNs in a scaling run: a fixed budget of Levenberg-Marquardt iterations per time-marching window
 # and no wall-clock limit, so that their preparation cost shows how training grows with N.
 SCALING_PINN_OPTIONS = {"max_iterations": 100, "max_seconds": None}
-# Configs made for large systems (CVODES's Adams, `solvers.casadi_cvodes`): `make bench` omits them,
-# the scaling suite runs them.
-LARGE_SYSTEM_CONFIGS = ("adams",)
 # What one unit of the scaling suite (build, fit, queries of one adapter on one case) may take.
 SCALING_UNIT_LIMITS = Limits(seconds=1800.0, rss_mb=16384.0)
 
@@ -72,26 +69,30 @@ SCALING_UNIT_LIMITS = Limits(seconds=1800.0, rss_mb=16384.0)
 class Settings:
     """Knobs of a run. Timings are medians of warm repeats within `latency_budget_s` seconds per
     measurement (at least `min_repeats`; a call over `max_call_s` is timed once); a latency query
-    estimated to take longer than `max_query_s` is skipped with a row that says so. Adapters that train run once per seed in `seeds`, except the
-    configs in `first_seed_only`; `pinn_options` override their budgets (iterations, so that a seed
-    gives the same network on a busy machine). Latency: `throughput_sizes` trajectories of 201 times, the
-    single point at each of `t1_values_s`, and `points_batch` scattered single points in one call.
+    estimated to take longer than `max_query_s` is skipped with a row that says so. Adapters that
+    train run once per seed in `seeds` (on a multi-machine case the first only: `harness.plan`);
+    `pinn_options` override their budgets (iterations, so that a seed gives the same network on a
+    busy machine). Latency:
+    `throughput_sizes` trajectories of 201 times, the single point at each of `t1_values_s`, and
+    `points_batch` scattered single points in one call.
     Work-precision sweeps `wp_rtols`; on the multi-machine cases an adapter that is not compiled
-    sweeps `network_wp_rtols` (None: `wp_rtols`). Configs in `omit_configs` run only when the command
-    line names them. Identification runs over `pairs` x `noise_levels`
-    (relative Gaussian noise, `noise_draws` draws of it at each level above 0: the coverage of the
-    95 % intervals is measured over them) with `n_u` samples, except for configs in
-    `skip_identify_configs`.
+    sweeps `network_wp_rtols` (None: `wp_rtols`). Configs with a mark (`solvers.base.CONFIG_MARKS`)
+    in `omit_marks` run only when the command line names them. Identification runs over `pairs` x
+    `noise_levels` (relative Gaussian noise, `noise_draws` draws of it at each level above 0: the
+    coverage of the 95 % intervals is measured over them) with `n_u` samples, except for configs
+    with a mark in `skip_identify_marks`.
     `threads` is recorded with the results. `cases` are the run's forward cases when the command
-    line names none; on the multi-machine ones, PINNs run only `network_pinn_configs` (`measures`),
-    and identification runs only `network_identify_configs` (at ode45's tolerances a classical
-    identification there is both slow, minutes with 2n unknowns, and biased by the integration
-    error: 10-14 % on wscc9, measured) on `network_identify_cases` at `network_noise_levels` (with
-    1 % noise scipy-rk45 took 520 s on wscc9, measured); `network_pinn_seconds` gives a case's PINN fits a wall-clock
-    budget (`budgeted`). `unit_limits` (None: none) runs each unit in a fresh process under a
+    line names none; on the multi-machine ones each adapter runs the configs made for them
+    (`AbstractSolver.CASE_KINDS`), and identification runs only with configs declared to identify
+    networks (`IDENTIFIES_NETWORKS`: at ode45's tolerances a classical identification there is both
+    slow, minutes with 2n unknowns, and biased by the integration error: 10-14 % on wscc9,
+    measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
+    took 520 s on wscc9, measured); `network_pinn_seconds` gives a case's PINN fits a wall-clock
+    budget (`harness.plan`). `unit_limits` (None: none) runs each unit in a fresh process under a
     wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
     `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
-    of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`)."""
+    of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`). Which
+    spec runs on which case and suite, and why the rest does not, is `harness.plan.plan`'s."""
 
     name: str = "default"
     threads: int = 2
@@ -100,7 +101,6 @@ class Settings:
     max_call_s: float = 3.0
     max_query_s: float = 30.0
     seeds: tuple[int, ...] = (0, 1, 2)
-    first_seed_only: tuple[str, ...] = ()
     pinn_options: dict = field(default_factory=dict)
     throughput_sizes: tuple[int, ...] = (1, 10, 100, 1000, 10000)
     t1_values_s: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
@@ -109,15 +109,13 @@ class Settings:
     noise_levels: tuple[float, ...] = (0.0, 0.01)
     noise_draws: int = 1
     n_u: int = 100
-    skip_identify_configs: tuple[str, ...] = ()
+    skip_identify_marks: tuple[str, ...] = ()
     wp_rtols: tuple[float, ...] = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
     network_wp_rtols: tuple[float, ...] | None = None
-    omit_configs: tuple[str, ...] = ()
+    omit_marks: tuple[str, ...] = ()
     cache_dir: Path | None = Path(".cache/models")
     retrain: bool = False
     cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES)
-    network_pinn_configs: tuple[str, ...] = ("marching",)
-    network_identify_configs: tuple[str, ...] = ("tight", "marching")
     network_pinn_seconds: dict[str, float] = field(default_factory=dict)
     network_noise_levels: tuple[float, ...] = (0.0,)
     network_identify_cases: tuple[str, ...] = NETWORK_CASES
@@ -128,28 +126,6 @@ class Settings:
     scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
     scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
 
-    def measures(self, spec: SolverSpec, case: Case) -> bool:
-        """Whether a run measures `spec` on `case`. Multi-machine cases (no infinite bus) cost a PINN
-        minutes of training each: there only the configs of `network_pinn_configs` run, on the
-        first seed; classical adapters run everything everywhere."""
-        cls = SOLVERS.get(spec.solver)
-        if cls is None or not cls.trains:
-            return True
-        if case.kind == SMIB:  # time-marching is for the multi-machine swings, not the SMIB
-            return spec.config != "marching"
-        return spec.config in self.network_pinn_configs and spec.seed in (None, self.seeds[0])
-
-    def budgeted(self, spec: SolverSpec, case: Case) -> SolverSpec:
-        """`spec` with the wall-clock training budget `network_pinn_seconds` gives `case` (options
-        `max_seconds` and `id_max_seconds`, so the budget shows in the row's variant), for adapters
-        that train and specs that set no `max_seconds` of their own; otherwise `spec` itself."""
-        seconds = self.network_pinn_seconds.get(case.name)
-        cls = SOLVERS.get(spec.solver)
-        if seconds is None or cls is None or not cls.trains or "max_seconds" in dict(spec.options):
-            return spec
-        budget = [(key, float(seconds)) for key in ("max_seconds", "id_max_seconds") if key in cls.OPTIONS]
-        return replace(spec, options=tuple(sorted((*spec.options, *budget))))
-
     def sweep_rtols(self, compiled: bool, case: Case) -> tuple[float, ...]:
         """The tolerances of a work-precision sweep of an adapter (`compiled` or not) on `case`."""
         if case.kind == SMIB or compiled or self.network_wp_rtols is None:
@@ -159,10 +135,10 @@ class Settings:
     def for_scaling(self) -> Settings:
         """These settings for a run of the scaling suite alone: each unit under
         `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds), and
-        the configs for large systems (`LARGE_SYSTEM_CONFIGS`) not omitted."""
+        the configs made for large systems (`LARGE_SYSTEMS`) not omitted."""
         return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_seconds={},
                        pinn_options={**self.pinn_options, **self.scaling_pinn_options},
-                       omit_configs=tuple(c for c in self.omit_configs if c not in LARGE_SYSTEM_CONFIGS))
+                       omit_marks=tuple(m for m in self.omit_marks if m != LARGE_SYSTEMS))
 
     @property
     def quick(self) -> bool:
@@ -183,14 +159,14 @@ QUICK = Settings(
 # work-precision; a model of them from that run's repeats and medians puts them at 23 min with the
 # 0.25 s and 3 repeats below). With every cut below (commit 146a219): 55 min, ~1.6 of them outside the
 # units (numba's cache, the report); units of work SMIB 8.5, wscc9 15.1, kundur4 10.0, ieee39 15.0, SMIB identification
-# 5.1 min (the report's line). The cuts: one seed (--full: five), the two-output configs and those
-# for large systems only when named (--config), 0.25 s of repeats per timing (at least 3: a call
+# 5.1 min (the report's line). The cuts: one seed (--full: five), the configs marked as ablations
+# (the two-output PINNs) and those for large systems only when named (--config), 0.25 s of repeats per timing (at least 3: a call
 # of 1 ms is timed ~250 times, one of 0.1 s 3 times), scipy RK45 identified once (not again for
 # its batch mode, which changes its queries only), a latency query
 # estimated over 10 s skipped (a row says so), on the multi-machine cases the Python-driven
 # adapters sweep three tolerances (the compiled ones all eight: the verdicts compare with them), the
 # SMIB identified at the paper's own case only (m = 0.25, d = 0.15, also from the paper's ode45
-# data), at both noise levels. Multi-machine cases: PINNs (`marching`) train within the stated
+# data), at both noise levels. Multi-machine cases: PINNs (their configs made for networks) train within the stated
 # wall-clock budget per case (the issue's 5- and 10-minute targets are measured apart, see the
 # README); identification noise-free, on wscc9 only (each classical adapter takes 1-80 s there; on
 # kundur4 and ieee39 minutes more per adapter). --full runs everything: every seed and config, the
@@ -201,9 +177,9 @@ DEFAULT = Settings(
     latency_budget_s=0.25,
     min_repeats=3,
     max_query_s=10.0,
-    omit_configs=("two-outputs", "paper-two-outputs", *LARGE_SYSTEM_CONFIGS),
+    omit_marks=(ABLATION, LARGE_SYSTEMS),
     pairs=(PAPER_PAIR,),
-    skip_identify_configs=("paper-two-outputs", "two-outputs"),
+    skip_identify_marks=(ABLATION,),
     network_wp_rtols=(1e-3, 1e-6, 1e-9),
     network_pinn_seconds={"wscc9": 60.0, "kundur4": 60.0, "ieee39": 120.0},
     network_identify_cases=("wscc9",),
@@ -217,10 +193,9 @@ def default_specs(
     settings: Settings = DEFAULT,
 ) -> list[SolverSpec]:
     """Every registered adapter (installed or not: missing ones become 'skipped' rows) in each of
-    its named configs (`configs`, or those `settings.omit_configs` does not omit), plain and in each
-    of its `VARIANTS`; adapters that train
-    once per seed of `settings.seeds` (the first only for configs in `settings.first_seed_only`);
-    and, when no adapters are named, the do-nothing adapter that times the interface (latency only)."""
+    its named configs (`configs`, or those without a mark in `settings.omit_marks`), plain and in
+    each of its `VARIANTS`; adapters that train once per seed of `settings.seeds`; and, when no
+    adapters are named, the do-nothing adapter that times the interface (latency only)."""
     names = list(SOLVERS) if solvers is None else list(solvers)
     unknown = [n for n in names if n not in SOLVERS]
     if unknown:
@@ -232,14 +207,14 @@ def default_specs(
             specs.append(SolverSpec(name))
             continue
         for config in cls.CONFIGS:
-            if config not in configs if configs is not None else config in settings.omit_configs:
+            if config not in configs if configs is not None else cls.marks(config) & set(settings.omit_marks):
                 continue
             variants = [(), *(tuple(sorted(v.items())) for v in cls.VARIANTS)]
             if cls.trains:
-                seeds = settings.seeds[:1] if config in settings.first_seed_only else settings.seeds
                 budget = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
                 for variant in variants:  # the plain spec first: it trains, its variants reuse the model
-                    specs.extend(SolverSpec(name, config, tuple(sorted(budget + variant)), seed) for seed in seeds)
+                    specs.extend(SolverSpec(name, config, tuple(sorted(budget + variant)), seed)
+                                 for seed in settings.seeds)
                 continue
             specs.extend(SolverSpec(name, config, variant) for variant in variants)
     if solvers is None:

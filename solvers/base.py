@@ -11,9 +11,15 @@ import numpy as np
 
 from solvers.identification import Estimate, assess, data_shortfall
 from solvers.options import OptionSchema, defaults, validate_options
-from systems.cases import Case, Observations, check_array
+from systems.cases import KINDS, Case, Observations, check_array
 
 __all__ = [
+    "ABLATION",
+    "CONFIG_MARKS",
+    "DEFAULT_CONFIG",
+    "IDENTIFIES_NETWORKS",
+    "LARGE_SYSTEMS",
+    "SWEEP_POINT",
     "AbstractSolver",
     "Estimate",
     "FitReport",
@@ -24,6 +30,17 @@ __all__ = [
     "Trajectory",
 ]
 
+
+# The named config every adapter has: the schema's defaults.
+DEFAULT_CONFIG = "default"
+
+# What a named config is declared for (`AbstractSolver.CONFIG_MARKS`), where the planner needs
+# to know more than its options: runs select configs by these marks, never by their names.
+IDENTIFIES_NETWORKS = "identifies networks"  # accurate enough to identify a multi-machine case's 2n parameters
+LARGE_SYSTEMS = "large systems"  # made for systems of hundreds of machines (the scaling suite's)
+ABLATION = "ablation"  # changes one design choice of another config, to measure what that choice is worth
+SWEEP_POINT = "sweep point"  # sets only options the adapter's precision sweep sets: a point of the default curve
+CONFIG_MARKS = frozenset({IDENTIFIES_NETWORKS, LARGE_SYSTEMS, ABLATION, SWEEP_POINT})
 
 _INF = float("inf")
 _F64 = np.dtype(np.float64)
@@ -120,7 +137,7 @@ class AbstractSolver(abc.ABC):
     1. set `name` (the registry key), `SCHEMA` (a `solvers.options.OptionSchema`: every option
        with its type, range and default, declared once; `OPTIONS`, name -> default, is derived
        from it, and anything else is rejected) and optionally `CONFIGS` (named option sets;
-       "default" is {}); checks that need the case go in `_check_options`,
+       `DEFAULT_CONFIG`, "default", is {}); checks that need the case go in `_check_options`,
     2. implement `_fit()`: the untimed preparation (build integrators, JIT, train), returning a
        `FitReport` or None; `fit()` times it and marks the solver ready,
     3. implement `_solve(t, P1)` on validated arrays (t: 1-D, >= 0 s, any order, repeats allowed;
@@ -151,6 +168,9 @@ class AbstractSolver(abc.ABC):
       made, never what `fit` or `identify` compute (threads: up to the order of floating-point
       sums): a variant that sets only these is not identified again, and the model cache leaves
       them out of a trained model's key;
+    - `CASE_KINDS`: config -> the kinds of case (`systems.cases.Case.kind`) it is made for; a
+      config it does not list is made for every kind (`made_for`);
+    - `CONFIG_MARKS`: config -> what it is for, from `solvers.base.CONFIG_MARKS` (`marks`);
     - `blas_threads`: the BLAS thread count its queries are timed with, when it is not the run's
       (the fastest for the adapter, measured; see the class that sets it);
     - `precision_sweep(rtols)`: the option overrides of the work-precision curve (an adaptive
@@ -160,7 +180,7 @@ class AbstractSolver(abc.ABC):
     name: ClassVar[str]
     SCHEMA: ClassVar[type[OptionSchema] | None] = None
     OPTIONS: ClassVar[Mapping[str, Any]] = {}  # derived from SCHEMA; set by hand only without one
-    CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {"default": {}}
+    CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {DEFAULT_CONFIG: {}}
     bounded_domain: ClassVar[bool] = False
     trains: ClassVar[bool] = False
     has_tolerance: ClassVar[bool] = False
@@ -171,6 +191,8 @@ class AbstractSolver(abc.ABC):
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset()
+    CASE_KINDS: ClassVar[Mapping[str, frozenset[str]]] = {}
+    CONFIG_MARKS: ClassVar[Mapping[str, frozenset[str]]] = {}
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
         """Option overrides, one dict per point of this adapter's work-precision curve, from the
@@ -181,14 +203,31 @@ class AbstractSolver(abc.ABC):
             return []
         return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
 
+    @classmethod
+    def made_for(cls, config: str, kind: str) -> bool:
+        """Whether named config `config` is made for cases of kind `kind` (`Case.kind`)."""
+        return kind in cls.CASE_KINDS.get(config, KINDS)
+
+    @classmethod
+    def marks(cls, config: str) -> frozenset[str]:
+        """What named config `config` is declared for (`CONFIG_MARKS`; none by default)."""
+        return frozenset(cls.CONFIG_MARKS.get(config, ()))
+
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         if cls.__dict__.get("SCHEMA") is not None:
             if "OPTIONS" in cls.__dict__:
                 raise TypeError(f"{cls.__name__}: declare options once, in SCHEMA; OPTIONS is derived")
             cls.OPTIONS = defaults(cls.SCHEMA)
+        for attribute, known in (("CASE_KINDS", frozenset(KINDS)), ("CONFIG_MARKS", CONFIG_MARKS)):
+            for config, values in getattr(cls, attribute).items():
+                if config not in cls.CONFIGS:
+                    raise TypeError(f"{cls.__name__}.{attribute} names {config!r}, none of its CONFIGS")
+                if not set(values) <= known:
+                    raise TypeError(f"{cls.__name__}.{attribute}[{config!r}]: unknown {sorted(set(values) - known)}; "
+                                    f"known: {', '.join(sorted(known))}")
 
-    def __init__(self, case: Case, config: str = "default", **options: Any) -> None:
+    def __init__(self, case: Case, config: str = DEFAULT_CONFIG, **options: Any) -> None:
         if not isinstance(case, Case):
             raise ValueError(f"case must be a systems.cases.Case, got {type(case).__name__}")  # noqa: TRY004
         if config not in self.CONFIGS:

@@ -7,9 +7,10 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, Estimate, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
+    TOLERANCE_MARKS,
     ObservationLayout,
     ToleranceOptions,
     identify_least_squares,
@@ -93,6 +94,7 @@ class CasadiCVODES(AbstractSolver):
     SCHEMA = CVODESOptions
     # adams: the non-stiff method at ode45's tolerances, for large systems (see above)
     CONFIGS: ClassVar[dict[str, dict]] = {**TOLERANCE_CONFIGS, "adams": {"method": "adams", "newton": "functional"}}
+    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {**TOLERANCE_MARKS, "adams": frozenset({LARGE_SYSTEMS})}
     has_tolerance = True
     takes_threads = True
     QUERY_OPTIONS = frozenset({"threads"})

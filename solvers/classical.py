@@ -9,14 +9,14 @@ from typing import NamedTuple, TypeVar
 import numpy as np
 from scipy.optimize import least_squares
 
-from solvers.base import SolveError
+from solvers.base import IDENTIFIES_NETWORKS, SWEEP_POINT, SolveError
 from solvers.identification import Estimate, gauss_newton_covariance
 from solvers.options import Bounds, OptionSchema, PositiveFloat
 from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "ObservationLayout", "ToleranceOptions", "check_step", "identify_least_squares",
+__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "ToleranceOptions", "check_step", "identify_least_squares",
            "search_boxes"]
 
 
@@ -57,6 +57,9 @@ TOLERANCE_CONFIGS = {
     "default": {},
     "tight": {"rtol": 1e-10, "atol": 1e-12},
 }
+# "tight" identifies multi-machine cases (at ode45's tolerances the integration error biases the 2n
+# estimates) and, setting only the swept tolerances, is a point of the default config's sweep.
+TOLERANCE_MARKS = {"tight": frozenset({IDENTIFIES_NETWORKS, SWEEP_POINT})}
 
 
 def run_batch(run: Callable[[np.ndarray], T], P1: np.ndarray) -> T:

@@ -15,6 +15,7 @@ import numpy as np
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
+    TOLERANCE_MARKS,
     ObservationLayout,
     ToleranceOptions,
     check_step,
@@ -189,6 +190,7 @@ class DiffraxODE(AbstractSolver):
     compiled: ClassVar[bool] = True
     SCHEMA = DiffraxOptions
     CONFIGS = TOLERANCE_CONFIGS
+    CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     takes_threads = True
     QUERY_OPTIONS = frozenset({"threads"})  # its `batch` changes identification's error control: not here

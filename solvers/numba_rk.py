@@ -13,6 +13,7 @@ from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
+    TOLERANCE_MARKS,
     ObservationLayout,
     ToleranceOptions,
     check_step,
@@ -61,6 +62,7 @@ class NumbaRK(AbstractSolver):
     compiled: ClassVar[bool] = True
     SCHEMA = NumbaRKOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {**TOLERANCE_CONFIGS, "rk4": {"method": "rk4"}}
+    CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     takes_threads = True
     QUERY_OPTIONS = frozenset({"threads"})

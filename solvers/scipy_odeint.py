@@ -8,7 +8,13 @@ import numpy as np
 from scipy.integrate import odeint
 
 from solvers.base import AbstractSolver, Estimate, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation, run_batch
+from solvers.classical import (
+    TOLERANCE_CONFIGS,
+    TOLERANCE_MARKS,
+    ToleranceOptions,
+    identify_by_simulation,
+    run_batch,
+)
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 
@@ -36,6 +42,7 @@ class ScipyOdeint(AbstractSolver):
     name: ClassVar[str] = "scipy-odeint"
     SCHEMA = ToleranceOptions
     CONFIGS = TOLERANCE_CONFIGS
+    CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
     # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,

@@ -8,7 +8,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from solvers.base import AbstractSolver, Estimate, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, ToleranceOptions, identify_by_simulation
+from solvers.classical import TOLERANCE_CONFIGS, TOLERANCE_MARKS, ToleranceOptions, identify_by_simulation
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 
@@ -50,6 +50,7 @@ class ScipyRK45(AbstractSolver):
     method: ClassVar[str] = "RK45"
     SCHEMA = RK45Options
     CONFIGS = TOLERANCE_CONFIGS
+    CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     VARIANTS = ({"batch": "stacked"},)
     QUERY_OPTIONS = frozenset({"batch"})  # `identify` integrates one P1 at a time in either mode

@@ -102,7 +102,9 @@ def test_default_specs_cover_configs_and_batch_modes():
 
 
 def test_omitted_configs_run_only_when_named():
-    omitting = replace(DEFAULT, omit_configs=("tight",))
+    from solvers.base import IDENTIFIES_NETWORKS
+
+    omitting = replace(DEFAULT, omit_marks=(IDENTIFIES_NETWORKS,))  # scipy-rk45's tight is marked so
     assert [s.config for s in default_specs(["scipy-rk45"], None, omitting)] == ["default", "default"]
     assert {s.config for s in default_specs(["scipy-rk45"], ["tight"], omitting)} == {"tight"}
 
@@ -410,14 +412,14 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
-    from harness.runner import plan
+    from harness.plan import plan
     from harness.runs import default_specs
     from harness.suites import DEFAULT_SUITES, SUITES
     from systems.cases import SMIB_INFERENCE as forward
 
     specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
     units = {(unit.case.name, unit.spec.variant): list(unit.suites)
-             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES])}
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES]).units}
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
     assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]
@@ -425,13 +427,13 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
     # its identification's error control, so its variant identifies
     specs = [SolverSpec("scipy-rk45", options=(("batch", "stacked"),)), SolverSpec("diffrax", options=(("batch", "vmap"),))]
     units = {(unit.case.name, unit.spec.solver): list(unit.suites)
-             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES])}
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES]).units}
     assert ("smib-identification", "scipy-rk45") not in units
     assert units[("smib-identification", "diffrax")] == ["identification"]
 
 
 def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
-    from harness.runner import plan
+    from harness.plan import plan
     from harness.runs import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES
@@ -439,7 +441,7 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
 
     settings = replace(DEFAULT, seeds=(0,), network_pinn_seconds={"wscc9": 90.0})
     specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
-    units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings)
+    units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings).units
     budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_seconds") for u in units}
     assert budget[("wscc9", "jax-pinn", "marching")] == 90.0
     assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
@@ -470,7 +472,8 @@ def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
     assert parse_option("max_seconds=null") == ("max_seconds", None)
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_option("rtol")
-    from harness.runner import check_units, plan
+    from harness.plan import plan
+    from harness.runner import check_units
     from harness.suites import SUITES
 
     specs = default_specs(["scipy-rk45", "numba-rk"], ["default"])
@@ -479,7 +482,7 @@ def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
     assert [s.variant for s in tuned if s.solver == "numba-rk"] == [s.variant for s in specs if s.solver == "numba-rk"]
     with pytest.raises(ValueError, match="none of the selected adapters"):
         with_options(specs, {"width": 3})
-    units = plan(with_options(specs, {"batch": "sideways"}), [SMIB_INFERENCE], [SUITES["accuracy"]], QUICK)
+    units = plan(with_options(specs, {"batch": "sideways"}), [SMIB_INFERENCE], [SUITES["accuracy"]], QUICK).units
     with pytest.raises(ValueError, match=r"^scipy-rk45\[default,batch=sideways\] smib-inference: scipy-rk45: "
                                          "option batch must be one of"):
         check_units(units, QUICK)

@@ -1,10 +1,82 @@
-"""Capabilities are declared, and the declarations agree with the adapters' options."""
+"""The planner (`harness.plan`): make bench's selection of units is what it was before the planner
+read declarations; SMIB or network is the case's kind; capabilities are declared, and the
+declarations agree with the adapters' options."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+from pathlib import Path
+
 import pytest
 
-from solvers import SOLVERS
+from harness.plan import not_on_case, plan
+from harness.runs import DEFAULT, FULL, QUICK, SolverSpec, default_specs
+from harness.suites import DEFAULT_SUITES, SUITES, identification_case
+from solvers import SOLVERS, make_solver
+from solvers.base import ABLATION, CONFIG_MARKS, IDENTIFIES_NETWORKS, LARGE_SYSTEMS, SWEEP_POINT
+from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERENCE, smib_case
+
+# Every unit of work of make bench's plans, as the harness chose them before the planner (the
+# runner's plan with `Settings.measures`, the identification and work-precision suites' own checks):
+# [case, solver, config, variant, seed, work, what it records] where the last is "run", the
+# "skipped: ..." status of its one row, or "no rows" (a config that is a point of its adapter's
+# precision sweep: work-precision recorded nothing for it). Recorded once by running that code.
+BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
+
+RUNS = {
+    "default": (DEFAULT, DEFAULT_SUITES, DEFAULT.cases, None),
+    "quick": (QUICK, DEFAULT_SUITES, QUICK.cases, None),
+    "full": (FULL, DEFAULT_SUITES, FULL.cases, None),
+    # the configs make bench leaves out unless the command line names them (--config)
+    "default --config": (DEFAULT, DEFAULT_SUITES, ("smib-inference", "wscc9"),
+                         ["default", "two-outputs", "paper-two-outputs", "adams"]),
+    "scaling": (DEFAULT.for_scaling(), ("scaling",), ("smib-inference", "wscc9"), None),
+}
+
+needs_every_adapter = pytest.mark.skipif(any(SOLVERS[name] is None for name in SOLVERS),
+                                         reason="the recorded plans are of every adapter installed")
+
+
+@needs_every_adapter
+@pytest.mark.parametrize("run", list(RUNS))
+def test_make_bench_plans_the_units_it_planned_before(run):
+    settings, suites, cases, configs = RUNS[run]
+    result = plan(default_specs(None, configs, settings), [CASES[name] for name in cases],
+                  [SUITES[name] for name in suites], settings)
+    works = []
+    for unit in result.units:
+        skipped = dict(unit.skipped)
+        for work in unit.works():
+            key = unit.work_key(work)
+            works.append([key["case"], key["solver"], key["config"], key["variant"], key["seed"], work,
+                          skipped.get(work, "run")])
+    assert works == [entry for entry in BEFORE[run] if entry[-1] != "no rows"]
+    # what recorded no rows is not run now, and the plan says why
+    not_run = {(s.case.name, s.spec.solver, s.spec.config, s.spec.variant, s.spec.key()["seed"], s.suite)
+               for s in result.not_run}
+    rowless = [tuple(entry[:6]) for entry in BEFORE[run] if entry[-1] == "no rows"]
+    assert all(entry in not_run for entry in rowless)
+    assert all(s.reason.startswith("skipped: ") for s in result.not_run)
+
+
+def test_a_smib_built_by_smib_case_plans_as_a_smib_without_a_list():
+    heavy = smib_case("smib-heavy", m=0.8, d=0.3, b=0.2, delta0=0.1, omega0=0.1, t_final=20.0,
+                      p1_min=0.08, p1_max=0.18)
+    assert heavy.kind == SMIB and CASES["wscc9"].kind == NETWORK and SMIB_INFERENCE.kind == SMIB
+    assert identification_case(heavy) is SMIB_IDENTIFICATION and identification_case(CASES["wscc9"]).name == "wscc9"
+    marching, single = SolverSpec("jax-pinn", "marching", seed=0), SolverSpec("jax-pinn", "default", seed=0)
+    if SOLVERS["jax-pinn"] is None:
+        pytest.skip("jax not installed")
+    assert not_on_case(single, heavy, DEFAULT) is None
+    assert "not made for smib cases" in not_on_case(marching, heavy, DEFAULT)
+    assert not_on_case(marching, CASES["wscc9"], DEFAULT) is None
+    assert "not made for network cases" in not_on_case(single, CASES["wscc9"], DEFAULT)
+    assert "first seed only" in not_on_case(replace(marching, seed=1), CASES["wscc9"], replace(DEFAULT, seeds=(0, 1)))
+    result = plan([single, marching], [heavy], [SUITES[name] for name in DEFAULT_SUITES], DEFAULT)
+    assert {(u.case.name, u.spec.config) for u in result.units} == {("smib-heavy", "default"),
+                                                                     ("smib-identification", "default")}
+    assert DEFAULT.sweep_rtols(False, heavy) == DEFAULT.wp_rtols  # the SMIB's full sweep
 
 
 @pytest.mark.parametrize("name", list(SOLVERS))
@@ -20,3 +92,22 @@ def test_declared_capabilities_agree_with_the_adapters_options(name):
     assert cls.takes_threads == ("threads" in options)
     assert cls.can_save == (callable(getattr(cls, "save", None)) and callable(getattr(cls, "load", None)))
     assert cls.QUERY_OPTIONS <= options
+    for config in cls.CONFIGS:
+        assert cls.marks(config) <= CONFIG_MARKS
+        # a point of the sweep: a config that sets only the options its sweep sets
+        solver = make_solver(name, SMIB_INFERENCE, config)
+        sweep = solver.precision_sweep((1e-3,))
+        covered = bool(sweep) and bool(cls.CONFIGS[config]) and set(cls.CONFIGS[config]) <= set(sweep[0])
+        assert (SWEEP_POINT in cls.marks(config)) == covered, config
+    assert any(cls.made_for(config, SMIB) for config in cls.CONFIGS)
+    assert any(cls.made_for(config, NETWORK) for config in cls.CONFIGS)
+
+
+@needs_every_adapter
+def test_make_bench_selects_configs_by_their_marks_and_names_none():
+    marks = {(name, config): SOLVERS[name].marks(config) for name in SOLVERS for config in SOLVERS[name].CONFIGS}
+    omitted = {key for key, m in marks.items() if m & {ABLATION, LARGE_SYSTEMS}}
+    assert {(s.solver, s.config) for s in default_specs(None, None, DEFAULT)}.isdisjoint(omitted)
+    assert {(s.solver, s.config) for s in default_specs(None, None, DEFAULT.for_scaling())} >= {
+        key for key, m in marks.items() if LARGE_SYSTEMS in m}
+    assert any(IDENTIFIES_NETWORKS in m for m in marks.values())

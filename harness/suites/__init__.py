@@ -3,7 +3,7 @@
 A row holds the measurement's own columns; the runner adds suite, case, solver, config, variant,
 seed and status, so every suite's rows form one tidy DataFrame. `Suite` says how the runner
 treats each: whether it needs a fitted solver, whether it repeats for every training seed, and
-whether it runs on a case of its own.
+whether it runs on a case of its own; `harness.plan` reads them.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ class Suite:
     queries: bool = True  # measures queries; False: a spec that differs only in how a trained model is
     #                       queried (`query=numba`) would repeat the same work, so it is not run for it
     default: bool = True  # run when the command line names no suite
+    identifies: bool = False  # identifies m and d: the run's settings say with which configs, on which cases
+    sweeps: bool = False  # sweeps each adapter's precision: a config that is a point of the sweep repeats it
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""
@@ -45,8 +47,9 @@ class Suite:
 SUITES: dict[str, Suite] = {suite.name: suite for suite in (
     Suite("accuracy", accuracy, every_seed=True),
     Suite("latency", latency, interface=True),
-    Suite("work_precision", work_precision),
-    Suite("identification", identification, needs_fit=False, own_case=identification_case, queries=False),
+    Suite("work_precision", work_precision, sweeps=True),
+    Suite("identification", identification, needs_fit=False, own_case=identification_case, queries=False,
+          identifies=True),
     Suite("scaling", scaling, default=False),
 )}
 DEFAULT_SUITES = tuple(name for name, suite in SUITES.items() if suite.default)

@@ -8,7 +8,7 @@ import numpy as np
 
 from harness.runs import Settings
 from solvers.base import AbstractSolver
-from systems.cases import NETWORK, SMIB, Case, Observations, standard_grid
+from systems.cases import SMIB, Case, Observations, standard_grid
 from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
 
 
@@ -106,15 +106,8 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
     and d from `settings.n_u` samples of all angles; relative errors (per machine, their worst and
     mean), wall time (s), standard errors (p.u.), 95 % intervals (p.u., NaN when the adapter has
     none) and whether the true values lie in them (None when there is no interval). Per-machine
-    columns hold a number for one machine and a list for several."""
-    if solver.config in settings.skip_identify_configs:
-        return [{"status": f"skipped: config {solver.config} not identified in the {settings.name} run "
-                           "(--full runs it)"}]
-    if case.kind == NETWORK and case.name not in settings.network_identify_cases:
-        return [{"status": f"skipped: {case.name} not identified in the {settings.name} run (--full runs it)"}]
-    if case.kind == NETWORK and solver.config not in settings.network_identify_configs:
-        return [{"status": f"skipped: config {solver.config} not identified on multi-machine cases (only "
-                           f"{', '.join(settings.network_identify_configs)})"}]
+    columns hold a number for one machine and a list for several. Which configs identify on which
+    cases is the planner's (`harness.plan`): it runs this suite only where the run identifies."""
     rows = []
     for pair_index, noise, data, draw in _runs(case, settings):
         m, d = truths(case, settings)[pair_index]

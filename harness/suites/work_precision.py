@@ -53,16 +53,15 @@ def setting_label(overrides: dict) -> str:
 
 def work_precision(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """An adapter with a precision sweep (`AbstractSolver.precision_sweep`: tolerances of an adaptive
-    solver, steps of a fixed-step one) gives a curve, one point per setting, swept from each config
-    that the sweep does not cover (a config that only sets the swept options, like "tight", is a
-    point of the "default" curve); any other adapter gives its own point. The tolerances are
-    `Settings.sweep_rtols` (fewer for a Python-driven adapter on a multi-machine case). Each row has the
-    overrides as columns (rtol, atol or dt) and as `setting` text."""
+    solver, steps of a fixed-step one) gives a curve, one point per setting, swept from its config
+    (a config that only sets the swept options is a point of the default config's curve: declared
+    `SWEEP_POINT`, the planner does not run this suite for it); any other adapter gives its own
+    point. The tolerances are `Settings.sweep_rtols` (fewer for a Python-driven adapter on a
+    multi-machine case). Each row has the overrides as columns (rtol, atol or dt) and as `setting`
+    text."""
     sweep = solver.precision_sweep(settings.sweep_rtols(solver.compiled, case))
     if not sweep:
         return [{"setting": "", **_point(solver, case, settings)}]
-    if solver.config != "default" and set(solver.CONFIGS[solver.config]) <= set(sweep[0]):
-        return []
     rows = []
     for overrides in sweep:
         tuned = type(solver)(case, solver.config, **{**solver.options, **overrides})

@@ -21,14 +21,14 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from solvers.base import AbstractSolver, FitReport, NotFittedError
+from solvers.base import ABLATION, IDENTIFIES_NETWORKS, AbstractSolver, FitReport, NotFittedError
 from solvers.identification import Estimate, linearised_covariance
 from solvers.options import PositiveInt, StrictBool
 from solvers.pinn import spec
 from solvers.pinn.network import Physics
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
 from solvers.pinn.spec import Architecture, PinnConfig, PinnConfigSchema, Problem
-from systems.cases import Observations
+from systems.cases import NETWORK, SMIB, Observations
 
 __all__ = ["Evaluator", "MarchingEvaluator", "PinnSolver", "Trainer"]
 
@@ -243,6 +243,15 @@ class PinnSolver(AbstractSolver):
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads", "progress", "query"})
     SCHEMA = PinnOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
+    # One network learns the SMIB's swing; a multi-machine case's lightly damped 1-2 Hz swings need
+    # time-marching windows (`spec.CONFIGS`), which the SMIB does not.
+    CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {
+        "default": frozenset({SMIB}), "paper": frozenset({SMIB}), "paper-two-outputs": frozenset({SMIB}),
+        "two-outputs": frozenset({SMIB}), "marching": frozenset({NETWORK})}
+    # the two-output networks weigh the paper's second formulation against its first
+    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {
+        "paper-two-outputs": frozenset({ABLATION}), "two-outputs": frozenset({ABLATION}),
+        "marching": frozenset({IDENTIFIES_NETWORKS})}
 
     def _check_options(self) -> None:
         self.pinn_config = PinnConfig.from_options(self.options)  # validated already, by PinnOptions
