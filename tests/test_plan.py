@@ -10,11 +10,19 @@ from pathlib import Path
 
 import pytest
 
-from harness.plan import not_on_case, plan
+from harness.plan import FIT, Unit, not_on_case, plan
+from harness.runner import run_unit
 from harness.runs import DEFAULT, FULL, QUICK, SolverSpec, default_specs
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver
-from solvers.base import ABLATION, CONFIG_MARKS, IDENTIFIES_NETWORKS, LARGE_SYSTEMS, SWEEP_POINT
+from solvers.base import (
+    ABLATION,
+    CONFIG_MARKS,
+    IDENTIFIES_NETWORKS,
+    LARGE_SYSTEMS,
+    SWEEP_POINT,
+    AbstractSolver,
+)
 from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERENCE, smib_case
 
 # Every unit of work of make bench's plans, as the harness chose them before the planner (the
@@ -111,3 +119,35 @@ def test_make_bench_selects_configs_by_their_marks_and_names_none():
     assert {(s.solver, s.config) for s in default_specs(None, None, DEFAULT.for_scaling())} >= {
         key for key, m in marks.items() if LARGE_SYSTEMS in m}
     assert any(IDENTIFIES_NETWORKS in m for m in marks.values())
+
+
+class Unbuildable(AbstractSolver):
+    """Registered only while a test runs: building it fails, so a unit that builds it says so."""
+
+    name = "unbuildable"
+
+    def _check_options(self):
+        raise RuntimeError("built")
+
+    def _fit(self):
+        return None
+
+    def _solve(self, t, P1):
+        raise NotImplementedError
+
+    def _identify(self, obs):
+        raise NotImplementedError
+
+
+def test_a_suite_the_settings_leave_out_is_one_skipped_row_of_its_unit_and_builds_nothing(monkeypatch):
+    monkeypatch.setitem(SOLVERS, "unbuildable", Unbuildable)
+    why = "skipped: not identified in this test"
+    unit = Unit(SMIB_IDENTIFICATION, SolverSpec("unbuildable"), ("identification",),
+                skipped=(("identification", why),))
+    assert unit.works() == ["identification"]
+    ((work, (row,)),) = list(run_unit(unit, QUICK, unit.works()))
+    assert work == "identification" and row["status"] == why and row["suite"] == "identification"
+    assert {"case", "solver", "config", "variant", "seed", "trains", "worker", "work_s"} <= set(row)
+    # beside a suite that runs, the fit is for that suite only, and the skip keeps its place
+    both = replace(unit, suites=("accuracy", "identification"))
+    assert both.works() == [FIT, "accuracy", "identification"]

@@ -31,6 +31,7 @@ class Counting(AbstractSolver):
 
     name = "counting"
     OPTIONS: ClassVar = {"threads": 1, "dt": 0.1}
+    takes_threads = True
     fits = 0
 
     def _check_options(self):
