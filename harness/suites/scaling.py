@@ -91,7 +91,7 @@ def scaling(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
 
     pred, ref = relative_angles(case, delta), relative_angles(case, ref_delta)
     return [{
-        "machines": case.n, "n_trajectories": P1.size, "n_times": t.size,
+        "machines": case.n, "n_trajectories": P1.size, "n_times": t.size, "horizon_s": case.t_final,
         "quantity": "delta" if case.has_infinite_bus else "delta - delta_COI",
         "rel_l2": metrics.rel_l2(pred, ref), "max_abs": metrics.max_abs(pred, ref),
         "grid_first_s": first_s, "grid_median_s": grid.median_s, "grid_repeats": grid.repeats,
