@@ -69,11 +69,11 @@ def test_case_rejects_bad_parameters(field, value):
         dataclasses.replace(case, **{field: value})
 
 
-@pytest.mark.parametrize("field,value", [("g_inf", (True,)), ("b_inf", [np.True_]), ("m", (0.4, True)),
+@pytest.mark.parametrize("field,value", [("g_inf", (True, 0.0)), ("b_inf", [0.0, np.True_]), ("m", (0.4, True)),
                                          ("t_final", True), ("p1_max", np.True_), ("p1_min", "0.1"),
                                          ("m_box", ((0.02, True),)), ("delta0", ["0.1"])])
 def test_case_refuses_booleans_and_strings_inside_its_fields(field, value):
-    case = SMIB_INFERENCE if field != "m" else TWO_MACHINES
+    case = TWO_MACHINES if field in ("m", "g_inf", "b_inf") else SMIB_INFERENCE
     with pytest.raises(ValueError, match=f"^Case.{field} must be"):
         dataclasses.replace(case, **{field: value})
 
