@@ -371,6 +371,10 @@ def test_short_training_reaches_a_loose_accuracy(name):
     assert rel_l2(traj.omega, ref_omega) < 1e-1
 
 
+def _within(interval, value) -> bool:
+    return bool(interval[0] <= value <= interval[1])
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(BACKENDS))
 def test_identification_recovers_m_and_d(name):
@@ -378,10 +382,13 @@ def test_identification_recovers_m_and_d(name):
     case = SMIB_IDENTIFICATION
     solver = make_solver(name, case, **{**SMALL, "id_width": 10, "id_n_f": 300, "id_max_iterations": 60})
     result = solver.identify(_observations(case, 100))
-    assert result.success and result.iterations > 0
+    assert result.iterations > 0
     assert result.m.shape == result.d.shape == (1,)
     assert result.m[0] == pytest.approx(case.m[0], rel=0.05)
     assert result.d[0] == pytest.approx(case.d[0], rel=0.1)
+    # 60 iterations leave the network's misfit far above the data's: the interval holds the truth
+    # and says how little the misfit pins down (whether it is narrow enough to call a success)
+    assert _within(result.m_ci95[0], case.m[0]) and _within(result.d_ci95[0], case.d[0])
 
 
 def test_identification_uses_omega_observations():
@@ -438,16 +445,19 @@ def test_paper_configs_run_in_float32(name, config, monkeypatch):
     assert all(x.dtype == np.float32 for x in solver._evaluate(np.array([10.0, 0.0]), np.array([0.13])))
     ident = solver.identify(_observations(CASE, 20))
     assert np.isfinite([ident.m, ident.d]).all() and ident.m[0] > 0 and ident.d[0] > 0
-    assert len(compiled) >= 2 and {dtype for dtype, *_ in compiled} == {"float32"}  # fit, identify
+    # fit and identify train in float32; the identification's interval takes its Jacobian from a
+    # float64 build of the same problem (the last compilation)
+    assert len(compiled) >= 3 and {dtype for dtype, *_ in compiled[:-1]} == {"float32"}
+    assert compiled[-1][0] == "float64" and compiled[-1][1] == compiled[-2][1]
     # what L-BFGS trained on (fit, identify) gives float32 numbers ...
-    for (*_, trainer), theta in [(compiled[0], solver.theta), (compiled[-1], solver.identification["theta"])]:
+    for (*_, trainer), theta in [(compiled[0], solver.theta), (compiled[-2], solver.identification["theta"])]:
         loss, grad = trainer.loss_and_grad(theta)
         assert float(np.float32(loss)) == loss
         np.testing.assert_array_equal(grad, grad.astype(np.float32))
     if name != "torch-pinn":  # the float64 build costs JAX another compilation; torch shows the contrast
         return
     # ... where the float64 build of the same problem does not, and agrees to float32 accuracy
-    loss64, grad64 = real_compile(*compiled[-1][1], "float64").loss_and_grad(solver.identification["theta"])
+    loss64, grad64 = compiled[-1][2].loss_and_grad(solver.identification["theta"])
     assert not np.array_equal(grad64, grad64.astype(np.float32))
     assert loss == pytest.approx(loss64, rel=1e-4)
     np.testing.assert_allclose(grad, grad64, rtol=0, atol=1e-3 * np.abs(grad64).max())
@@ -561,11 +571,11 @@ def test_torch_trains_on_the_device_it_is_given():
         make_solver("torch-pinn", CASE, device="tpu")
     with pytest.raises(ValueError, match="device"):
         make_solver("jax-pinn", CASE, device="cuda")  # the JAX backend trains where JAX computes
-    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
-    if not torch.cuda.is_available():
-        with pytest.raises(ValueError, match="device='cuda': torch .* finds no CUDA device"):
-            gpu.fit()
+    if not torch.cuda.is_available():  # refused when the adapter is built, before a run measures
+        with pytest.raises(ValueError, match="option device must be 'cpu' on this machine .* no CUDA device"):
+            make_solver("torch-pinn", CASE, **SMALL, device="cuda")
         return
+    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
     report = gpu.fit()  # on a GPU machine: the same network to float64 rounding, recorded
     assert "trained on" in report.message
     np.testing.assert_allclose(gpu.theta, solver.theta, rtol=1e-6, atol=1e-9)

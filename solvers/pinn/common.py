@@ -413,8 +413,11 @@ class PinnSolver(AbstractSolver):
         message = result.message + (f"; {note}" if note else "")
         if not success:
             return Estimate(m, d, result.iterations, False, message)
+        # the Jacobian in float64 also for a float32 network (torch's nested forward mode, which
+        # float32 training never uses, mixes the two precisions)
+        exact = trainer if config.dtype == "float64" else self._compile(arch, problem, self.physics, "float64")
         cov, dof, condition = linearised_covariance(
-            trainer.jacobian(result.theta), trainer.residuals(result.theta), problem.targets.size, 2 * n,
+            exact.jacobian(result.theta), exact.residuals(result.theta), problem.targets.size, 2 * n,
             rcond=100 * float(np.finfo(config.dtype).eps))
         return Estimate(m, d, result.iterations, True, message, cov, dof, condition)
 
