@@ -14,7 +14,8 @@ from harness.metrics import rel_l2
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network, spec
-from solvers.pinn.common import MarchingEvaluator, _progress_enabled
+from solvers.pinn.common import _progress_enabled
+from solvers.pinn.evaluator import MarchingEvaluator
 from systems import model
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
 from systems.reference import reference

@@ -17,7 +17,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from solvers.pinn.common import Evaluator, PinnSolver, Trainer
+from solvers.pinn.common import PinnSolver, Trainer
+from solvers.pinn.evaluator import Evaluator
 from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem
 from solvers.threads import configure_threads
