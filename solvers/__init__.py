@@ -54,7 +54,9 @@ class _Registry(MutableMapping[str, "type[AbstractSolver] | None"]):
 
     def __getitem__(self, name: str) -> type[AbstractSolver] | None:
         if name not in self._classes:
-            module, cls, package = self._adapters[name]  # KeyError for an unknown name, as a dict
+            adapter = self._adapters[name]  # KeyError for an unknown name, as a dict
+            assert adapter is not None, name  # a class assigned directly is in _classes from then on
+            module, cls, package = adapter
             try:
                 self._classes[name] = getattr(importlib.import_module(module), cls)
             except ImportError as exc:

@@ -168,8 +168,8 @@ def family_case(name: str) -> Case:
     net = _load(name)
     shifts = net.trafo.shift_degree.values[net.trafo.shift_degree.values != 0] if len(net.trafo) else []
     model = family_model(net, F_HZ[name])
-    shifted = (f"; phase shifts of {len(shifts)} transformers (|shift| <= {max(abs(shifts)):.2g} deg) set "
-               "to 0" if len(shifts) else "")
+    shifted = (f"; phase shifts of {len(shifts)} transformers (|shift| <= {max(abs(s) for s in shifts):.2g} "
+               "deg) set to 0" if len(shifts) else "")
     return network_case(name, model, t_final=T_FINAL, source=(
         f"network: MATPOWER {name} ({_ORIGIN[name]}) via pandapower.networks.{name}{shifted}; machines: "
         f"every gen and ext_grid, one per bus, H = {H_S:g} s, x'd = {XD_PRIME:g} p.u. on rating max(sn_mva "

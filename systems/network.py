@@ -253,9 +253,23 @@ def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread:
         raise ValueError(f"box_offset must be in (1 / box_factor, box_factor) = ({1 / box_factor:g}, "
                          f"{box_factor:g}) so that the truth is inside its box, got {box_offset!r}")
     p1 = sorted((model.p_m[0] * (1 - p1_spread), model.p_m[0] * (1 + p1_spread)))
-    n = model.m.size
-    return Case(name=name, m=model.m, d=model.d, delta0=model.delta0, omega0=np.zeros(n), p_m=model.p_m,
-                E=model.E, G=model.G, B=model.B, g_inf=np.zeros(n), b_inf=np.zeros(n), t_final=t_final,
-                p1_min=p1[0], p1_max=p1[1],
-                m_box=box_offset * np.column_stack([model.m / box_factor, model.m * box_factor]),
-                d_box=box_offset * np.column_stack([model.d / box_factor, model.d * box_factor]), source=source)
+    zeros = (0.0,) * model.m.size
+    m_box = box_offset * np.column_stack([model.m / box_factor, model.m * box_factor])
+    d_box = box_offset * np.column_stack([model.d / box_factor, model.d * box_factor])
+    return Case(name=name, m=_floats(model.m), d=_floats(model.d), delta0=_floats(model.delta0), omega0=zeros,
+                p_m=_floats(model.p_m), E=_floats(model.E), G=_rows(model.G), B=_rows(model.B), g_inf=zeros,
+                b_inf=zeros, t_final=t_final, p1_min=p1[0], p1_max=p1[1], m_box=_pairs(m_box),
+                d_box=_pairs(d_box), source=source)
+
+
+# A Case holds tuples of floats (hashable, compared by value): the model's arrays as such
+def _floats(x: np.ndarray) -> tuple[float, ...]:
+    return tuple(np.asarray(x, np.float64).tolist())
+
+
+def _rows(x: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(row) for row in np.asarray(x, np.float64).tolist())
+
+
+def _pairs(x: np.ndarray) -> tuple[tuple[float, float], ...]:
+    return tuple((lo, hi) for lo, hi in np.asarray(x, np.float64).tolist())

@@ -14,7 +14,8 @@ from harness.metrics import rel_l2
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network, spec
-from solvers.pinn.common import MarchingEvaluator, _progress_enabled
+from solvers.pinn.common import _progress_enabled
+from solvers.pinn.evaluator import MarchingEvaluator
 from systems import model
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
 from systems.reference import reference
@@ -699,7 +700,7 @@ def test_marching_is_continuous_at_the_window_boundaries(marched):
 def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatch):
     """A repeated single-point query looks the window starts up instead of walking the windows, and
     gives what a grid query gives; the cache holds at most `cache_size` P1 values."""
-    from solvers.pinn import common
+    from solvers.pinn import evaluator as evaluators
 
     solver, _ = marched
     evaluator = solver._evaluate
@@ -707,8 +708,8 @@ def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatc
     t, P1 = np.array([0.0, 0.7, 1.0, 2.5, 3.99, 4.0]), np.array([0.27, 0.33])
     grid = solver.solve(t, P1)
     walks = []
-    real = common.walk
-    monkeypatch.setattr(common, "walk", lambda *args: walks.append(args[3].size) or real(*args))
+    real = evaluators.walk
+    monkeypatch.setattr(evaluators, "walk", lambda *args: walks.append(args[3].size) or real(*args))
     for i in range(P1.size):
         for j in range(t.size):
             one = solver.solve(t[j:j + 1], P1[i:i + 1])

@@ -9,7 +9,7 @@ import pytest
 
 from solvers import make_solver
 from solvers.pinn import spec
-from solvers.pinn.common import MarchingEvaluator
+from solvers.pinn.evaluator import MarchingEvaluator
 from systems.cases import SMIB_INFERENCE, Case
 
 pytest.importorskip("numba")

@@ -29,7 +29,7 @@ import math
 import numba
 import numpy as np
 
-from solvers.pinn.common import Evaluator, MarchingEvaluator
+from solvers.pinn.evaluator import Evaluator, MarchingEvaluator
 from solvers.pinn.spec import Architecture, load_model
 
 __all__ = ["NumbaEvaluator", "compiled_model"]
@@ -285,7 +285,7 @@ class NumbaEvaluator(Evaluator):
     """delta (rad) and omega (rad/s), each (len(P1), len(t), n) float64, of networks `arch` (not the
     identification architectures), computed in float64 by numba; compiled and warmed up when made.
     `grid` / `pairs` take each P1's or point's start state (time-marching windows), so a
-    `common.MarchingEvaluator` over this one is the compiled query of a time-marching model.
+    `evaluator.MarchingEvaluator` over this one is the compiled query of a time-marching model.
 
     `threads` > 1: queries of at least `_PARALLEL_MIN` points are split over that many numba threads
     (prange over chunks of the flattened grid). The same point gives the same bits whatever the

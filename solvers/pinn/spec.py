@@ -26,7 +26,7 @@ import numpy as np
 from pydantic import model_validator
 from scipy.stats import qmc
 
-from harness.atomic import write_atomically
+from solvers.atomic import write_atomically
 from solvers.options import (
     NonNegativeInt,
     PositiveFloat,

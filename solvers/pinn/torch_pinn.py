@@ -20,7 +20,8 @@ import numpy as np
 import torch
 from torch import func as tfunc
 
-from solvers.pinn.common import Evaluator, PinnOptions, PinnSolver, Trainer
+from solvers.pinn.common import PinnOptions, PinnSolver, Trainer
+from solvers.pinn.evaluator import Evaluator
 from solvers.pinn.network import Ops, Physics, jacobian_blocks, residual_vector
 from solvers.pinn.spec import Architecture, Problem
 
