@@ -12,8 +12,19 @@ from harness.cli import README_END, README_START, main
 from harness.labels import Labels, split_items
 from harness.pages import GENERATED, readme_block, write_pages
 from harness.report import write_report
+from harness.store import RowStore
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_the_readme_verdicts_are_what_the_report_writes_from_the_landed_rows():
+    """No hand-typed figure can hide in the README's generated block: it must be, character for
+    character, what `swingbench report results --update-readme README.md` writes from the rows."""
+    rows = RowStore(ROOT / "results", create=False).read().rows
+    meta = json.loads((ROOT / "results" / "metadata.json").read_text(encoding="utf-8"))
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(README_START, 1)[1].split(README_END, 1)[0]
+    assert block == readme_block(rows, meta, ROOT / "README.md", ROOT / "docs" / "results", ROOT / "results")
 
 
 def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:
