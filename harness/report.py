@@ -276,8 +276,8 @@ TABLES = {
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
                "error, fit time and query time of one model)"), _smib_paper_table),
     "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
-                "seed; `query=numba` is the compiled query path) against the fastest classical option at least "
-                "as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
+                "seed; \"numba query\" is the compiled query path, `query=numba`) against the fastest classical "
+                "option at least as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
     "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
                   "(median [min, max] over seeds for PINNs)"), _accuracy_table),
     "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
