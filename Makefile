@@ -53,3 +53,11 @@ asv: setup
 asv-quick: setup
 	$(BIN)/asv machine --yes > /dev/null
 	SWINGBENCH_ASV_QUICK=1 $(ASV_RUN) --quick --durations 5
+
+# the documentation site (mkdocs.yml, docs/) into site/; --strict: any warning (a broken link, an
+# anchor that is not there) fails the build. NO_MKDOCS_2_WARNING: without Material's end-of-life banner
+.PHONY: docs
+EXTRAS := $(EXTRAS),docs
+
+docs: setup
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site

@@ -32,6 +32,7 @@ from harness.analysis import (
     ok,
     trained,
 )
+from harness.labels import Labels
 from harness.paper import paper_table
 from harness.plots import SCALING_PLOTS
 from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
@@ -41,7 +42,8 @@ from harness.versions import library_versions
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
 from systems.reference import OFF_TRAINING
 
-__all__ = ["build_tables", "metadata", "scaling_markdown", "write_report"]
+__all__ = ["build_tables", "case_sections", "header", "metadata", "scaling_markdown", "section_markdown",
+           "suite_frames", "verdict_markdown", "work_minutes", "write_report"]
 
 LIBRARIES = ("numpy", "scipy", "pandas", "casadi", "torch", "jax", "jaxlib", "optax", "numba", "diffrax")
 TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref")
@@ -274,8 +276,8 @@ TABLES = {
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
                "error, fit time and query time of one model)"), _smib_paper_table),
     "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
-                "seed; `query=numba` is the compiled query path) against the fastest classical option at least "
-                "as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
+                "seed; \"numba query\" is the compiled query path, `query=numba`) against the fastest classical "
+                "option at least as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
     "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
                   "(median [min, max] over seeds for PINNs)"), _accuracy_table),
     "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
@@ -349,7 +351,8 @@ def build_tables(frames: dict[str, pd.DataFrame]) -> dict[str, tuple[str, pd.Dat
     return out
 
 
-def _header(meta: dict) -> str:
+def header(meta: dict) -> str:
+    """The run's line: date, CPU, threads, commit, settings and library versions."""
     get = lambda key: meta.get(key, "?")
     return (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}, "
             f"settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
@@ -375,19 +378,31 @@ def work_minutes(rows: list[dict]) -> str:
     return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all{some}.\n\n"
 
 
-HEADLINE = ("paper", "ladder", "break_even", "accuracy", "identification")
+def section_markdown(name: str, frames: dict, tables: dict, level: str = "###", heading: str | None = None) -> str:
+    """A case's section: its heading (`heading`, default "Case <name>"), the options its names leave
+    out, its verdicts and every table of `tables` (`build_tables`), each configuration named by
+    `harness.labels.Labels` of the case's rows."""
+    labels = Labels(frames)
+    return (f"{level[:-1]} {heading or f'Case {name}'}\n\n" + verdict_markdown(frames, labels, level)
+            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
+                        for title, table in tables.values()))
 
 
-def _section_markdown(name: str, frames: dict, tables: dict, only: Sequence[str] | None = None,
-                      level: str = "###") -> str:
-    chosen = [(title, table) for key, (title, table) in tables.items() if only is None or key in only]
-    return (f"{level[:-1]} Case {name}\n\n" + _verdict(frames, level)
-            + "\n".join(f"{level} {title}\n\n{table.to_markdown(index=False)}\n" for title, table in chosen))
-
-
-def _verdict(frames: dict, level: str = "###") -> str:
+def verdict_markdown(frames: dict, labels: Labels | None = None, level: str | None = "###") -> str:
+    """The note on the options left out of the names, then the verdict sentences of a case as a
+    list, under a heading of `level` (None: no heading); "" for a case with neither."""
+    labels = labels or Labels(frames)
+    note = labels.note()
     lines = verdict_lines(frames)
-    return f"{level} Verdict of this case\n\n" + "".join(f"- {line}\n" for line in lines) + "\n" if lines else ""
+    head = f"{level} Verdict of this case\n\n" if lines and level else ""
+    return ((f"{note}\n\n" if note else "")
+            + (head + "".join(f"- {labels.text(line, '`{}`')}\n" for line in lines) + "\n" if lines else ""))
+
+
+def _scaling_labels(frames: dict) -> Labels:
+    """The names of the scaling section: the options every scaling unit of a configuration shares
+    (the suite's training budget) are left out."""
+    return Labels({suite: df for suite, df in frames.items() if suite in ("scaling", "fit")})
 
 
 def scaling_markdown(frames: dict, level: str = "###") -> str:
@@ -401,16 +416,12 @@ def scaling_markdown(frames: dict, level: str = "###") -> str:
     tables = [(title, table) for title, table in tables if not table.empty]
     if not tables:
         return ""
-    return (f"\n{level[:-1]} Scaling\n\n"
-            + "\n".join(f"{level} {title}\n\n{table.to_markdown(index=False)}\n" for title, table in tables))
-
-
-def headline_markdown(rows: list[dict], meta: dict) -> str:
-    """The headline tables of a run (for the project README), in Markdown, case by case."""
-    frames = suite_frames(rows)
-    sections = case_sections(frames)
-    return _header(meta) + work_minutes(rows) + "\n".join(_section_markdown(name, own, build_tables(own), HEADLINE, "####")
-                                      for name, own in sections) + scaling_markdown(frames, "####")
+    labels = _scaling_labels(frames)
+    scaling = frames.get("scaling", pd.DataFrame(columns=["solver", "config"]))
+    note = labels.note(set(zip(scaling["solver"], scaling["config"])))
+    return (f"\n{level[:-1]} Scaling\n\n" + (f"{note}\n\n" if note else "")
+            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
+                        for title, table in tables))
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
@@ -427,11 +438,10 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
                       or [pd.DataFrame()], ignore_index=True)
     if not steps.empty:
         atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
-    markdown = _header(meta) + work_minutes(rows) + "\n".join(_section_markdown(name, own, tables)
-                                                         for name, own, tables in sections)
+    markdown = header(meta) + work_minutes(rows) + "\n".join(section_markdown(name, own, tables)
+                                                        for name, own, tables in sections)
     markdown += scaling_markdown(frames)
-    latex = "\n".join(f"% {name}: {title}\n{table.to_latex(index=False, escape=True)}"
-                      for name, _, tables in sections for title, table in tables.values())
+    latex = "\n".join(_latex(name, Labels(own), tables) for name, own, tables in sections)
     atomic_write(out_dir / "tables.md", markdown)
     atomic_write(out_dir / "tables.tex", latex)
     atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
@@ -445,9 +455,18 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
 
         for name, own, _ in sections:
             figures += make_plots(own, out_dir, suffix=f"-{name}" if len(sections) > 1 else "")
-        figures += make_plots({"scaling_frame": scaling_frame(frames)}, out_dir, names=SCALING_PLOTS)
+        figures += make_plots({"scaling_frame": scaling_frame(frames)}, out_dir, names=SCALING_PLOTS,
+                              labels=_scaling_labels(frames))
     atomic_write(out_dir / "README.md", _results_readme(meta, frames, markdown, figures))
     return markdown
+
+
+def _latex(name: str, labels: Labels, tables: dict) -> str:
+    """A case's tables in LaTeX, each after a comment with its case and title; the options left
+    out of the names in a comment first."""
+    note = labels.note()
+    return (f"% {name}: {note}\n" if note else "") + "\n".join(
+        f"% {name}: {title}\n{labels.table(table).to_latex(index=False, escape=True)}" for title, table in tables.values())
 
 
 def _results_readme(meta: dict, frames: dict, markdown: str, figures: list[str]) -> str:

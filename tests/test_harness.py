@@ -66,7 +66,7 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert (timed.nunique() == 1).all() and timed.first()["latency"] > latency["median_s"].sum()
 
     markdown = write_report(store.rows(), tmp_path, {"threads": 2})
-    assert "casadi-cvodes [default]" in markdown and "Skipped or failed" in markdown
+    assert "casadi-cvodes default" in markdown and "Skipped or failed" in markdown
     assert "Wall time of its units of work, minutes: smib-inference " in markdown
     assert "skipped: nothing not installed" in markdown
     assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()
@@ -140,11 +140,12 @@ def test_cli_run_and_report(tmp_path, capsys):
     assert main(["run", "--quick", "--case", "smib-inference", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
                  "--suite", "accuracy", "--out", str(out), "--update-readme", str(readme)]) == 0
     printed = capsys.readouterr().out
-    assert "casadi-cvodes [default]" in printed
+    assert "casadi-cvodes default" in printed
     text = readme.read_text()
     assert text.startswith("intro\n") and text.endswith("end\n") and "old" not in text
-    assert "casadi-cvodes [default]" in text
-    assert "![" not in text  # no work-precision figure in an accuracy run, so no link to one
+    assert "[smib-inference](docs/results/smib-inference.md)" in text  # the verdicts link the case's page
+    page = (tmp_path / "docs" / "results" / "smib-inference.md").read_text()
+    assert "casadi-cvodes default" in page and "![" not in page  # an accuracy run draws no figure
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["threads"] == 2 and "version_numpy" in meta
     (out / "tables.md").unlink()
@@ -212,7 +213,7 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
     assert "25,000" in markdown
     # on the work-precision curve the classical time at 1e-3 is 4 ms * 4^(-2/3) = 1.59 ms: 0.794x
     assert "0.794x" in markdown
-    assert "toy-pinn [default]" in markdown and "scipy-odeint [default]" in markdown
+    assert "toy-pinn default" in markdown and "scipy-odeint default" in markdown
     assert (tmp_path / "work_precision.png").exists() and (tmp_path / "tables.tex").exists()
     assert "![work_precision](work_precision.png)" in (tmp_path / "README.md").read_text()
 
