@@ -39,6 +39,8 @@ the best compiled (numba, diffrax) classical solver."""
 
 
 def _parser() -> argparse.ArgumentParser:
+    from solvers import SOLVERS  # names only: no adapter is imported
+
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -54,7 +56,7 @@ def _parser() -> argparse.ArgumentParser:
                           "process of its own under --unit-seconds and --unit-memory, on the scaling cases "
                           "(wscc9 ... case2869pegase) unless --case names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
-                     help="adapters to run (default: every registered one)")
+                     help=f"adapters to run (default: every registered one): {', '.join(SOLVERS)}")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter but the "
                           "two-output PINNs)")
