@@ -15,7 +15,17 @@ from pathlib import Path
 from harness import sweep  # imports only the standard library until a sweep runs
 from harness.usage import UsageError
 
-SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification", "scaling")
+
+def _suite_names() -> list[str]:
+    """The suites, by name, without importing them (importing the suites takes a second): one
+    module of `harness.suites` each, as `harness.suites.SUITES` finds them."""
+    import pkgutil
+    from importlib.util import find_spec
+
+    spec = find_spec("harness.suites")
+    where = spec.submodule_search_locations if spec is not None else None
+    return sorted(m.name for m in pkgutil.iter_modules(where or []) if not m.name.startswith("_"))
+
 
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
@@ -34,6 +44,8 @@ DOCS_HELP = ("write the documentation site's results pages into this folder: one
 
 
 def _parser() -> argparse.ArgumentParser:
+    from solvers import SOLVERS  # names only: no adapter is imported
+
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -44,12 +56,12 @@ def _parser() -> argparse.ArgumentParser:
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help=f"suites to run (default: all but scaling): {', '.join(SUITE_NAMES)}; scaling "
+                     help=f"suites to run (default: all but scaling): {', '.join(_suite_names())}; scaling "
                           "measures cost, memory and accuracy against the number of machines, each unit in a "
                           "process of its own under --unit-seconds and --unit-memory, on the scaling cases "
                           "(wscc9 ... case2869pegase) unless --case names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
-                     help="adapters to run (default: every registered one)")
+                     help=f"adapters to run (default: every registered one): {', '.join(SOLVERS)}")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter but the "
                           "two-output PINNs)")

@@ -39,6 +39,7 @@ from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, sc
 from harness.store import atomic_write, unit_key
 from harness.verdict import ladder_rows, ladder_table, verdict_lines
 from harness.versions import library_versions
+from solvers import SOLVERS, plugin_distribution
 from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION
 from systems.reference import OFF_TRAINING
 
@@ -82,8 +83,10 @@ def git_commit(repo: Path, outputs: Sequence[Path] = ()) -> str:
 
 
 def metadata(threads: int, outputs: Sequence[Path] = ()) -> dict:
-    """Machine, CPU, threads, library versions, commit (see `git_commit`) and date of a run."""
-    versions = library_versions(LIBRARIES)
+    """Machine, CPU, threads, library versions (the distributions of adapters from outside the
+    repository too), commit (see `git_commit`) and date of a run."""
+    plugins = tuple(dict.fromkeys(dist for name in SOLVERS if (dist := plugin_distribution(name))))
+    versions = library_versions(LIBRARIES + plugins)
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "machine": platform.node(), "platform": platform.platform(), "cpu": _cpu(),

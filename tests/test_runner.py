@@ -282,3 +282,12 @@ def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsy
     assert main(argv) == 0
     assert "failed" not in capsys.readouterr().err
     assert {r["status"] for r in RowStore(tmp_path).rows()} == {"ok", "skipped: not measured in this test"}
+
+
+def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_all():
+    from harness.cli import _suite_names
+    from harness.suites import DEFAULT_SUITES
+
+    assert list(SUITES) == _suite_names() == ["accuracy", "identification", "latency", "scaling", "work_precision"]
+    assert all(SUITES[name].run.__module__ == f"harness.suites.{name}" for name in SUITES)
+    assert DEFAULT_SUITES == ("accuracy", "identification", "latency", "work_precision")  # scaling runs alone

@@ -7,9 +7,16 @@ from __future__ import annotations
 import numpy as np
 
 from harness.runs import Settings
+from harness.suites._base import Suite
 from solvers.base import AbstractSolver
-from systems.cases import SMIB_CASES, Case, Observations, standard_grid
+from systems.cases import SMIB_CASES, SMIB_IDENTIFICATION, Case, Observations, standard_grid
 from systems.reference import PAPER_DATA, REFERENCE_DATA, reference, seed_reference
+
+
+def identification_case(case: Case) -> Case:
+    """The case identification measures for a forward case: the paper's own identification case
+    (m = 0.25, with the (m, d) pairs) for a SMIB case, the case itself otherwise."""
+    return SMIB_IDENTIFICATION if case in SMIB_CASES else case
 
 
 def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0,
@@ -128,3 +135,6 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
             "message": est.message,
         })
     return rows
+
+
+SUITE = Suite("identification", identification, needs_fit=False, own_case=identification_case, queries=False)

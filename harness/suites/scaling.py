@@ -19,6 +19,7 @@ import numpy as np
 
 from harness import metrics
 from harness.runs import Settings
+from harness.suites._base import Suite
 from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case
@@ -97,3 +98,6 @@ def scaling(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
         "grid_first_s": first_s, "grid_median_s": grid.median_s, "grid_repeats": grid.repeats,
         "point_median_s": point.median_s, "point_repeats": point.repeats, "reference_s": ref_s,
     }]
+
+
+SUITE = Suite("scaling", scaling, default=False)
