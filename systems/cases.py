@@ -357,7 +357,7 @@ class _Cases(Mapping):
         return len(self._builders)
 
 
-CASES: Mapping[str, Case] = _Cases()
+CASES = _Cases()
 
 
 def register_case(name: str) -> Callable[[CaseBuilder], CaseBuilder]:
@@ -371,8 +371,12 @@ def register_case(name: str) -> Callable[[CaseBuilder], CaseBuilder]:
     return register
 
 
+def _constant(case: Case) -> CaseBuilder:
+    return lambda: case
+
+
 for _case in SMIB_CASES:
-    register_case(_case.name)(lambda case=_case: case)
+    register_case(_case.name)(_constant(_case))
 
 # The paper identifies 10 (m, d) pairs in m in [0.1, 0.4], d in [0.05, 0.15] but does not list them.
 # Ours: m and d both evenly spaced over their ranges, paired in order (m_i, d_i), i = 0..9, so the
