@@ -158,7 +158,7 @@ def test_a_plugin_runs_every_default_suite_through_the_cli_and_the_report_names_
     accuracy = [r for r in rows if r["suite"] == "accuracy" and r["against"] == "reference" and r["quantity"] == "delta"]
     assert accuracy and accuracy[0]["rel_l2"] < 1e-4  # the run measured a real integrator
     tables = (tmp_path / "out" / "tables.md").read_text()
-    assert "tiny [default]" in tables  # the accuracy, latency and identification tables and the summary
+    assert "tiny default" in tables  # the accuracy, latency and identification tables and the summary
     assert json.loads((tmp_path / "out" / "metadata.json").read_text())["version_tinyplugin"] == "0.1"
     assert "tiny" in python(["-m", "harness", "run", "--help"], [site], tmp_path).stdout
 
