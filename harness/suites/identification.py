@@ -91,11 +91,12 @@ def _per_machine(values: np.ndarray) -> float | list[float]:
 def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth: np.ndarray) -> dict:
     """The row's columns of one parameter (m or d): estimates, per-machine relative errors, their
     worst (`{name}_rel_error`) and mean, standard errors, intervals, whether every machine's truth
-    lies in its interval (None when some interval is unknown), how many machines' intervals hold
-    it and the worst relative half-width."""
+    lies in its interval (None when some interval is unknown: NaN; an unbounded one, (0, inf), holds
+    it), how many machines' intervals hold it and the worst relative half-width (inf for an
+    unbounded interval)."""
     errors = np.abs(est - truth) / np.abs(truth)
     low, high = ci95[:, 0], ci95[:, 1]
-    known = bool(np.isfinite(ci95).all())
+    known = not bool(np.isnan(ci95).any())
     return {
         f"{name}_true": _per_machine(truth), f"{name}_est": _per_machine(est),
         f"{name}_rel_error": float(errors.max()), f"{name}_rel_error_mean": float(errors.mean()),
