@@ -401,7 +401,7 @@ def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
 
 
 def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
-    from solvers.pinn.spec import PinnConfig
+    from solvers.pinn.config import PinnConfig
 
     config = PinnConfig()
     assert config.max_seconds is None and config.deadline(5.0) == float("inf")
