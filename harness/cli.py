@@ -138,7 +138,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from harness import executors
     from harness.isolation import Limits
-    from harness.report import metadata, write_report
+    from harness.provenance import metadata
+    from harness.report import write_report
     from harness.runner import check_units, execute, interrupted_message, open_results, outcome, plan
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write

@@ -15,8 +15,7 @@ from pathlib import Path
 
 from harness.labels import Labels
 from harness.plots import PLOTS, SCALING_PLOTS
-from harness.report import (
-    build_tables,
+from harness.sections import (
     case_sections,
     header,
     scaling_markdown,
@@ -26,6 +25,7 @@ from harness.report import (
     work_minutes,
 )
 from harness.store import atomic_write
+from harness.tables import build_tables
 
 __all__ = ["GENERATED", "readme_block", "write_pages"]
 

@@ -308,7 +308,7 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
 ])
 def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
     from harness.paper import paper_table
-    from harness.report import suite_frames
+    from harness.sections import suite_frames
 
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0}
@@ -330,7 +330,7 @@ def test_fastest_classical_includes_the_tolerance_sweep():
     """The rival of a PINN is the fastest classical option at least as accurate: a named config
     or any point of the work-precision sweep, for the grid and for the single-point query."""
     from harness.analysis import GRID_QUERY, POINT_QUERY, fastest_classical
-    from harness.report import suite_frames
+    from harness.sections import suite_frames
 
     base = {"case": "smib-inference", "threads": 2, "status": "ok", "seed": -1}
     ode = {**base, "solver": "scipy-odeint", "config": "default", "variant": ""}
@@ -360,7 +360,7 @@ def test_fastest_classical_includes_the_tolerance_sweep():
 def test_git_commit_is_dirty_only_for_changes_the_run_did_not_write(tmp_path):
     import subprocess
 
-    from harness.report import git_commit
+    from harness.provenance import git_commit
 
     def git(*args):
         subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,
@@ -401,7 +401,7 @@ def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
 
 
 def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
-    from solvers.pinn.spec import PinnConfig
+    from solvers.pinn.config import PinnConfig
 
     config = PinnConfig()
     assert config.max_seconds is None and config.deadline(5.0) == float("inf")
@@ -514,7 +514,7 @@ def test_cli_refuses_an_option_a_selected_case_or_this_machine_cannot_take_befor
 
 
 def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
-    from harness.report import work_minutes
+    from harness.sections import work_minutes
 
     unit = {"suite": "latency", "solver": "a", "config": "default", "variant": "", "seed": -1}
     rows = [{**unit, "case": "x", "work_s": 60.0}, {**unit, "case": "x", "work_s": 60.0},  # one unit, two rows

@@ -23,11 +23,21 @@ import numpy as np
 from solvers.base import AbstractSolver, FitReport, NotFittedError
 from solvers.identification import Estimate, linearised_covariance
 from solvers.options import PositiveInt, StrictBool
-from solvers.pinn import spec
+from solvers.pinn.architecture import Architecture, init_theta, start_guess
+from solvers.pinn.config import CONFIGS, PinnConfig, PinnConfigSchema
 from solvers.pinn.evaluator import Evaluator, MarchingEvaluator, walk
+from solvers.pinn.model_file import load_model, save_model
 from solvers.pinn.network import Physics
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
-from solvers.pinn.spec import Architecture, PinnConfig, PinnConfigSchema, Problem
+from solvers.pinn.problems import (
+    Problem,
+    forward_problem,
+    identification_p_range,
+    identification_problem,
+    observations_within,
+    window_edges,
+    window_problem,
+)
 from systems.cases import Observations
 
 __all__ = ["PinnSolver", "Trainer"]
@@ -66,7 +76,7 @@ class PinnSolver(AbstractSolver):
 
     `fit()` trains on the paper's data (initial and boundary points whose delta comes from the tight
     reference `systems.reference.reference`, where the paper used MATLAB ode45) plus the physics
-    residual on collocation points (see `spec.PinnConfig` and `spec.forward_problem`); `solve`
+    residual on collocation points (see `PinnConfig` and `forward_problem`); `solve`
     evaluates delta (rad) and omega = d delta/dt (rad/s, forward-mode autodiff of the same network,
     or the second output of a two-output network) on the trained domain; `identify` trains a
     network with m = exp(log m), d = exp(log d) as extra parameters on the observations and the
@@ -96,7 +106,7 @@ class PinnSolver(AbstractSolver):
     # the compiled query path of the same trained model (the model cache ignores `query`)
     VARIANTS: ClassVar[tuple[dict[str, Any], ...]] = ({"query": "numba"},)
     SCHEMA = PinnOptions
-    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = CONFIGS
 
     def _check_options(self) -> None:
         self.pinn_config = PinnConfig.from_options(self.options)  # validated already, by PinnOptions
@@ -168,8 +178,8 @@ class PinnSolver(AbstractSolver):
         arch = Architecture.of(config, self.case)
         if config.window is not None:
             return self._fit_marching(arch, deadline, note)
-        problem = spec.forward_problem(config, self.case)
-        theta0 = spec.init_theta(arch, config.seed)
+        problem = forward_problem(config, self.case)
+        theta0 = init_theta(arch, config.seed)
         evaluator = self._query_evaluator(arch)  # compiled within the time budget
         result = self._train(arch, problem, theta0, config.max_iterations, deadline, "fit")
         self._set_model(arch, result.theta, evaluator)
@@ -182,7 +192,7 @@ class PinnSolver(AbstractSolver):
         training, from the framework's evaluator whatever `query` says, so that training does not
         depend on it); each window has `max_iterations` and an equal share of the time left."""
         config = self.pinn_config
-        edges = spec.window_edges(self.case.t_final, config.window)
+        edges = window_edges(self.case.t_final, config.window)
         lengths = np.diff(edges)
         start0 = np.array([arch.delta0, arch.omega0], np.float64)
         evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
@@ -191,7 +201,7 @@ class PinnSolver(AbstractSolver):
         prepared: list[Any] = []
         iterations, losses, messages = 0, [], []
         for w in range(lengths.size):
-            problem = spec.window_problem(config, self.case, edges, w)
+            problem = window_problem(config, self.case, edges, w)
             problem = dataclasses.replace(
                 problem,
                 start_u=walk(walker, prepared, lengths, problem.p_u, start0)[:, -1] if problem.t_u.size else None,
@@ -202,7 +212,7 @@ class PinnSolver(AbstractSolver):
             trainer = self._compile(arch, problem, self.physics, config.dtype)
             now = time.perf_counter()
             window_deadline = now + (deadline - now) / (lengths.size - w)  # an equal share of what is left
-            theta0 = spec.init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
+            theta0 = init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
             result = self._train(arch, problem, theta0, config.max_iterations, window_deadline,
                                  f"fit window {w + 1}/{lengths.size}", trainer)
             thetas.append(result.theta)
@@ -246,7 +256,7 @@ class PinnSolver(AbstractSolver):
 
     def _identify(self, obs: Observations) -> Estimate:
         """Train a network with log m_1..n, log d_1..n as its last 2n parameters (LM or L-BFGS, as
-        configured), from `spec.start_guess` (one network over the whole horizon, also in
+        configured), from `start_guess` (one network over the whole horizon, also in
         time-marching configurations).
 
         Uncertainty: the linearised covariance (2n x 2n) of (log m_1..n, log d_1..n) over every
@@ -258,11 +268,11 @@ class PinnSolver(AbstractSolver):
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
         n = self.case.n
-        obs = spec.observations_within(config, obs)
+        obs = observations_within(config, obs)
         arch = Architecture.of(config, self.case, identification=True,
-                               p_range=spec.identification_p_range(self.case, obs))
-        problem = spec.identification_problem(config, self.case, obs)
-        theta0 = spec.init_theta(arch, config.seed, *spec.start_guess(config, self.case))
+                               p_range=identification_p_range(self.case, obs))
+        problem = identification_problem(config, self.case, obs)
+        theta0 = init_theta(arch, config.seed, *start_guess(config, self.case))
         trainer = self._compile(arch, problem, self.physics, config.dtype)
         result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify", trainer)
         m, d = np.exp(result.theta[-2 * n:-n]), np.exp(result.theta[-n:])
@@ -287,17 +297,17 @@ class PinnSolver(AbstractSolver):
         Loadable by either backend."""
         if not self.fitted:
             raise NotFittedError(f"{self.name}: nothing to save before fit() (or load())")
-        return spec.save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
-                               arch=self.arch, theta=self.theta, windows=self.windows,
-                               identification=getattr(self, "identification", None))
+        return save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
+                          arch=self.arch, theta=self.theta, windows=self.windows,
+                          identification=getattr(self, "identification", None))
 
     def load(self, path) -> PinnSolver:
         """Load what either backend saved at `path` (its config replaces this solver's config
         fields; threads, progress and query stay) and return this solver, fitted. A ValueError
         naming the file when the model is not of this solver's case: its case record differs, or
-        (`spec.load_model`, `spec.check_model_case`) its networks are not those of its config for
+        (`load_model`, `check_model_case`) its networks are not those of its config for
         the case it records (machines, initial state, P1 and t ranges, window edges)."""
-        saved = spec.load_model(path)
+        saved = load_model(path)
         if saved["case"] != self.case:
             differ = [f.name for f in dataclasses.fields(self.case)
                       if getattr(saved["case"], f.name) != getattr(self.case, f.name)]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from solvers.pinn.spec import Architecture
+from solvers.pinn.architecture import Architecture
 
 __all__ = ["Evaluator", "MarchingEvaluator", "walk"]
 

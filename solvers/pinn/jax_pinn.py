@@ -17,10 +17,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from solvers.pinn.architecture import Architecture
 from solvers.pinn.common import PinnSolver, Trainer
 from solvers.pinn.evaluator import Evaluator
 from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
-from solvers.pinn.spec import Architecture, Problem
+from solvers.pinn.problems import Problem
 from solvers.threads import configure_threads
 
 __all__ = ["OPS", "JaxPinn"]
