@@ -142,17 +142,22 @@ def _uncertainty_columns(g: pd.DataFrame) -> dict:
 
 
 def _coverage(g: pd.DataFrame, name: str) -> str:
-    """How many of the rows' per-machine 95 % intervals of `name` hold the truth, "k/n (p %)";
-    "n/a" without intervals (or for rows of runs before the per-machine count)."""
-    column = f"{name}_machines_in_ci95"
-    if column not in g:
+    """How many of the rows' per-machine 95 % intervals of `name` hold the truth, "k/n (p %)", from
+    the rows' intervals and true values (an unbounded interval holds it); machines with no
+    interval (NaN) are counted apart ("..., j without"); "n/a" for rows without interval columns."""
+    columns = [f"{name}_true", f"{name}_ci95_low", f"{name}_ci95_high"]
+    if any(column not in g for column in columns):
         return "n/a"
-    known = g[g[column].notna()]
-    total = int(known["machines"].fillna(1).sum()) if "machines" in known else len(known)
+    inside = total = missing = 0
+    for truth, low, high in g[columns].itertuples(index=False):
+        truth, low, high = (np.atleast_1d(np.asarray(x, np.float64)) for x in (truth, low, high))
+        known = ~(np.isnan(low) | np.isnan(high))
+        missing += int((~known).sum())
+        total += int(known.sum())
+        inside += int(((low <= truth) & (truth <= high))[known].sum())
     if not total:
-        return "n/a"
-    inside = int(known[column].sum())
-    return f"{inside}/{total} ({100 * inside / total:.0f} %)"
+        return "n/a" if not missing else f"0/0, {missing} without"
+    return f"{inside}/{total} ({100 * inside / total:.0f} %)" + (f", {missing} without" if missing else "")
 
 
 def _matched_table(frames: dict) -> pd.DataFrame:

@@ -298,7 +298,7 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
             "config": "tight", "variant": "", "seed": -1, "threads": 2, "status": "ok"}
     write_report([{**base, **row} for row in rows], tmp_path, {}, plots=False)
     markdown = (tmp_path / "tables.md").read_text()
-    inside = sum(r["m_machines_in_ci95"] for r in rows if r["noise"] > 0)
+    inside = sum(r["m_ci95_low"] <= r["m_true"] <= r["m_ci95_high"] for r in rows if r["noise"] > 0)
     assert "m 95% CI coverage" in markdown and f"{inside}/4 ({100 * inside / 4:.0f} %)" in markdown
 
 

@@ -92,8 +92,7 @@ def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth
     """The row's columns of one parameter (m or d): estimates, per-machine relative errors, their
     worst (`{name}_rel_error`) and mean, standard errors, intervals, whether every machine's truth
     lies in its interval (None when some interval is unknown: NaN; an unbounded one, (0, inf), holds
-    it), how many machines' intervals hold it and the worst relative half-width (inf for an
-    unbounded interval)."""
+    it) and the worst relative half-width (inf for an unbounded interval)."""
     errors = np.abs(est - truth) / np.abs(truth)
     low, high = ci95[:, 0], ci95[:, 1]
     known = not bool(np.isnan(ci95).any())
@@ -103,7 +102,6 @@ def _columns(name: str, est: np.ndarray, se: np.ndarray, ci95: np.ndarray, truth
         f"{name}_rel_errors": _per_machine(errors), f"{name}_se": _per_machine(se),
         f"{name}_ci95_low": _per_machine(low), f"{name}_ci95_high": _per_machine(high),
         f"{name}_in_ci95": bool(((low <= truth) & (truth <= high)).all()) if known else None,
-        f"{name}_machines_in_ci95": int(((low <= truth) & (truth <= high)).sum()) if known else None,
         f"{name}_rel_half_width": float(np.max((high - low) / 2 / est)) if known else float("nan"),
     }
 
