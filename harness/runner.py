@@ -370,9 +370,9 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
     out = Path(out)
     if resume and same:
         _check_same_run(out / "metadata.json", same, command)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
-    try:
+    try:  # inside a folder the user cannot enter, even exists() raises (PermissionError)
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out):
             pass

@@ -196,6 +196,27 @@ def test_an_unusable_out_is_one_line(tmp_path, counting):
             main([*argv, "--out", str(locked)])
 
 
+def test_an_out_inside_a_folder_that_cannot_be_entered_is_one_line(tmp_path, counting, monkeypatch, capsys):
+    """As a user without search permission on the parent finds it (root enters any folder, so the
+    test makes stat refuse): exit 2 and one line, no PermissionError traceback."""
+    import pathlib
+
+    out = tmp_path / "closed" / "out"
+    real_stat = pathlib.Path.stat
+
+    def stat(self, *args, **kwargs):
+        if str(self).startswith(str(tmp_path / "closed")):
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_stat(self, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "stat", stat)
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--out", str(out)])
+    assert info.value.code == 2 and str(info.value) == (
+        f"swingbench run: cannot write to --out {out}: Permission denied")
+
+
 def test_report_skips_bad_lines_with_a_warning_and_survives_bad_metadata(tmp_path, counting, capsys):
     store = RowStore(tmp_path)
     _run(store)
