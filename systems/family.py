@@ -1,4 +1,4 @@
-"""The scaling family (issue 13): real networks of growing size as classical N-machine swing systems.
+"""The scaling family: real networks of growing size as classical N-machine swing systems.
 
 The small end is the paper's wscc9 (3 machines) and ieee39 (10), with published machine data
 (`systems.grids`). The rest are the MATPOWER cases that pandapower ships (`pandapower.networks`):
@@ -123,7 +123,8 @@ def merge_machines(net: pandapowerNet) -> dict[int, float]:
     """One machine per bus, in place, before the power flow. At a bus with several in-service gen
     and ext_grid elements the first ext_grid (else the first gen) stays; a kept gen takes the
     others' P set points (a kept ext_grid, the slack, takes them up in the flow), and the others go
-    out of service: the flow then gives the kept element the bus's summed P and Q, as before.
+    out of service: the flow then gives the kept element the bus's summed P and Q, as the merged
+    elements had together.
     Returns {bus: S_plate}, MVA: the sum of `_nameplate` over each machine bus's elements."""
     plate = {}
     for bus, elements in _machines(net).items():

@@ -173,7 +173,7 @@ def physics_parameters(arch: Architecture, theta: Any, physics: Physics, ops: Op
 
 def powers(p: Any, physics: Physics, ops: Ops) -> Any:
     """Mechanical powers S + (n,) p.u. for generator 1's P1 = p (shape S): P1 and the others' p_m.
-    For one machine just p (the same arithmetic as before the N-machine model)."""
+    For one machine just p (no column of other machines to append)."""
     if physics.n == 1:
         return p[..., None]
     return p[..., None] * ops.asarray(physics.first, p) + ops.asarray(physics.rest, p)
