@@ -27,8 +27,14 @@ bench: setup
 bench-quick: setup
 	$(BIN)/swingbench run --quick --out results/quick
 
+# the layering (the import-linter contracts in pyproject.toml), no import circle outside systems/,
+# ruff over every package and the tests, mypy on the files pyproject.toml names. The import graph
+# takes well under a second to build: no cache folder for it.
 lint: setup
-	$(BIN)/ruff check harness solvers tests benchmarks
+	$(BIN)/lint-imports --no-logo --no-cache
+	$(BIN)/python .ci/import_cycles.py
+	$(BIN)/ruff check systems solvers harness benchmarks tests .ci
+	$(BIN)/mypy
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
@@ -47,3 +53,11 @@ asv: setup
 asv-quick: setup
 	$(BIN)/asv machine --yes > /dev/null
 	SWINGBENCH_ASV_QUICK=1 $(ASV_RUN) --quick --durations 5
+
+# the documentation site (mkdocs.yml, docs/) into site/; --strict: any warning (a broken link, an
+# anchor that is not there) fails the build. NO_MKDOCS_2_WARNING: without Material's end-of-life banner
+.PHONY: docs
+EXTRAS := $(EXTRAS),docs
+
+docs: setup
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site

@@ -15,7 +15,17 @@ from pathlib import Path
 from harness import sweep  # imports only the standard library until a sweep runs
 from harness.usage import UsageError
 
-SUITE_NAMES = ("accuracy", "latency", "work_precision", "identification", "scaling")
+
+def _suite_names() -> list[str]:
+    """The suites, by name, without importing them (importing the suites takes a second): one
+    module of `harness.suites` each, as `harness.suites.SUITES` finds them."""
+    import pkgutil
+    from importlib.util import find_spec
+
+    spec = find_spec("harness.suites")
+    where = spec.submodule_search_locations if spec is not None else None
+    return sorted(m.name for m in pkgutil.iter_modules(where or []) if not m.name.startswith("_"))
+
 
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
@@ -28,7 +38,14 @@ accurate, on three rungs: the literature's baseline (scipy RK45 looped), the bes
 the best compiled (numba, diffrax) classical solver."""
 
 
+DOCS_HELP = ("write the documentation site's results pages into this folder: one page per case with its "
+             "verdicts, tables and figures, and an index (default with --update-readme: docs/results beside the "
+             "README)")
+
+
 def _parser() -> argparse.ArgumentParser:
+    from solvers import SOLVERS  # names only: no adapter is imported
+
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -39,12 +56,12 @@ def _parser() -> argparse.ArgumentParser:
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help=f"suites to run (default: all but scaling): {', '.join(SUITE_NAMES)}; scaling "
+                     help=f"suites to run (default: all but scaling): {', '.join(_suite_names())}; scaling "
                           "measures cost, memory and accuracy against the number of machines, each unit in a "
                           "process of its own under --unit-seconds and --unit-memory, on the scaling cases "
                           "(wscc9 ... case2869pegase) unless --case names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
-                     help="adapters to run (default: every registered one)")
+                     help=f"adapters to run (default: every registered one): {', '.join(SOLVERS)}")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter but those the "
                           "run leaves out: make bench the ablations, such as the two-output PINNs, and the configs "
@@ -73,7 +90,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--out", type=Path, default=Path("results"), help="output folder (default results/)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
-                     help="also replace the generated tables section of this README")
+                     help="also replace the generated verdicts section of this README (and write the results "
+                          "pages, --docs)")
+    run.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
     run.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
                      help="progress bar on stderr (auto: only on a terminal)")
     run.add_argument("--unit-seconds", type=float, default=None, metavar="S",
@@ -90,8 +109,13 @@ def _parser() -> argparse.ArgumentParser:
                        help="run the units on a local dask.distributed cluster of one worker process")
 
     report = sub.add_parser("report", help="re-render tables from a results folder without running",
-                            description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables.")
+                            description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
+                                        "with --update-readme and --docs, the README's verdicts and the results pages.")
     report.add_argument("directory", type=Path)
+    report.add_argument("--update-readme", type=Path, default=None, metavar="README",
+                        help="also replace the generated verdicts section of this README (and write the results "
+                             "pages, --docs)")
+    report.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
     sweep.add_parser(sub)
     return parser
 
@@ -116,7 +140,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness import executors
     from harness.isolation import Limits
     from harness.plan import plan
-    from harness.report import metadata, write_report
+    from harness.provenance import metadata
+    from harness.report import write_report
     from harness.runner import check_units, execute, interrupted_message, open_results, outcome
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
@@ -184,10 +209,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     rows = _read_rows(store)
     markdown = write_report(rows, args.out, meta)
     print(markdown)
-    if args.update_readme:
-        from harness.report import headline_markdown
-
-        update_readme(args.update_readme, headline_markdown(rows, meta), args.out)
+    _write_docs(args, rows, meta, args.out)
     print(f"[swingbench] wrote {args.out}/", file=sys.stderr)
     return outcome(rows, store.path, counts["lost"])
 
@@ -204,29 +226,39 @@ def _read_rows(store) -> list[dict]:
 README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
 
 
-def _readme_around(path: Path) -> tuple[str, str]:
+def _readme_around(path: Path, command: str = "run") -> tuple[str, str]:
     """The README's text before and after its table markers; UsageError, one line, when it cannot
     be read or has no such section (checked before a run measures, and again when it writes)."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"swingbench run: --update-readme: cannot read {path}: {exc}") from None
+        raise UsageError(f"swingbench {command}: --update-readme: cannot read {path}: {exc}") from None
     if README_START not in text or README_END not in text:
-        raise UsageError(f"swingbench run: --update-readme: {path} has no {README_START} ... {README_END} "
+        raise UsageError(f"swingbench {command}: --update-readme: {path} has no {README_START} ... {README_END} "
                          "section to update")
     head, rest = text.split(README_START, 1)
     return head, rest.split(README_END, 1)[1]
 
 
-def update_readme(path: Path, markdown: str, out: Path) -> None:
-    """Replace the text between the README's table markers with the run's tables."""
+def update_readme(path: Path, block: str) -> None:
+    """Replace the text between the README's markers with `block` (`harness.pages.readme_block`)."""
     from harness.store import atomic_write
 
     head, tail = _readme_around(path)
-    figures = "".join(f"![{p.stem}]({out}/{p.name})\n" for p in sorted(Path(out).glob("work_precision*.png")))
-    body = (f"\n_Generated by `swingbench run` into `{out}/` (all tables and plots: `{out}/README.md`); "
-            f"do not edit by hand._\n\n{markdown}\n{figures}")
-    atomic_write(path, head + README_START + body + README_END + tail)
+    atomic_write(path, head + README_START + block + README_END + tail)
+
+
+def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: Path) -> None:
+    """The results pages (`--docs`, or docs/results beside a README to update) and the README's
+    verdicts, after the report wrote its tables and figures into `results`."""
+    pages = args.docs or (args.update_readme.parent / "docs" / "results" if args.update_readme else None)
+    if pages is None:
+        return
+    from harness.pages import readme_block, write_pages
+
+    write_pages(rows, meta, pages, results)
+    if args.update_readme:
+        update_readme(args.update_readme, readme_block(rows, meta, args.update_readme, pages, results))
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -250,8 +282,11 @@ def cmd_report(args: argparse.Namespace) -> int:
             print(f"[swingbench] warning: {meta_path} is unreadable ({exc}); the tables are written without it",
                   file=sys.stderr)
             meta = {}
+    if args.update_readme:
+        _readme_around(args.update_readme, "report")
     try:
         print(write_report(rows, args.directory, meta))
+        _write_docs(args, rows, meta, args.directory)
     except OSError as exc:
         raise UsageError(f"swingbench report: cannot write to {args.directory}: {exc.strerror or exc}") from None
     return 0

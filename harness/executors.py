@@ -3,7 +3,9 @@
 An executor is a callable `(jobs, settings) -> iterator of (unit, work, rows)`, where `jobs` are
 (unit, units of work to do) pairs; it yields each unit of work's rows as they arrive, or
 `(unit, work, None)` for each one it lost (a killed worker, a broken pool). Only the in-process
-executor streams a unit's suites one by one; workers return a unit's rows together.
+executor streams a unit's suites one by one; workers return a unit's rows together. The
+in-process one, `inline`, is the runner's default, so it lives in `harness.runner` (this module
+builds on the runner, never the other way) and is listed here with the others.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import sys
 from collections.abc import Iterator
 from typing import Any
 
-from harness.runner import Unit, run_unit, run_unit_in_worker
+from harness.runner import Unit, inline, run_unit_in_worker
 from harness.runs import Settings
 from harness.timing import THREAD_ENV
 from harness.usage import UsageError
@@ -21,13 +23,6 @@ from harness.usage import UsageError
 __all__ = ["choose", "dask", "dask_client", "inline", "joblib"]
 
 Jobs = list[tuple[Unit, tuple[str, ...]]]
-
-
-def inline(jobs: Jobs, settings: Settings) -> Iterator[tuple[Unit, str, list[dict] | None]]:
-    """In this process (threads as pinned by the caller), each unit of work recorded as it ends."""
-    for unit, todo in jobs:
-        for work, rows in run_unit(unit, settings, todo):
-            yield unit, work, rows
 
 
 def _lost(job: tuple[Unit, tuple[str, ...]], why: str) -> Iterator[tuple[Unit, str, None]]:

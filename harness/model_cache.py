@@ -18,6 +18,7 @@ from pathlib import Path
 
 from harness.store import atomic_write
 from harness.versions import library_versions
+from solvers import plugin_distribution
 from solvers.base import AbstractSolver, FitReport
 
 __all__ = ["CACHE_FORMAT", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version", "load_cached",
@@ -48,15 +49,23 @@ def Persistable(solver: AbstractSolver) -> bool:
     return type(solver).can_save
 
 
+def _plugin(name: str) -> tuple[str, ...]:
+    """The distribution of an adapter from outside the repository, whose code `code_version` does
+    not hash: its version is in the key instead. () for a built-in adapter."""
+    dist = plugin_distribution(name)
+    return (dist,) if dist else ()
+
+
 def cache_key(solver: AbstractSolver) -> str:
     """The file stem of `solver`'s trained model: adapter, config, every option that changes
     training (not the adapter's `QUERY_OPTIONS`: e.g. threads change the speed of training, and its
-    result only by floating-point summation order), case, code and library versions, the cache's
-    format."""
+    result only by floating-point summation order), case, code and library versions (and an outside
+    adapter's distribution's), the cache's format."""
     options = {k: v for k, v in solver.options.items() if k not in type(solver).QUERY_OPTIONS}
     payload = json.dumps({"solver": solver.name, "config": solver.config, "options": options,
                           "case": solver.case.__dict__, "code": code_version(),
-                          "libraries": library_versions(TRAINING_LIBRARIES), "cache_format": CACHE_FORMAT},
+                          "libraries": library_versions(TRAINING_LIBRARIES + _plugin(solver.name)),
+                          "cache_format": CACHE_FORMAT},
                          sort_keys=True, default=str)
     return f"{solver.name}-{solver.config}-{hashlib.sha256(payload.encode()).hexdigest()[:16]}"
 

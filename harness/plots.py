@@ -1,5 +1,6 @@
 """Plots of a run (PNG and PDF): the paper's figure 3, work-precision, latency against t1,
-identification error per pair. Each function takes the suite frames and returns a figure or None."""
+identification error per pair. Each function takes the suite frames and the names of their
+configurations (`harness.labels.Labels`) and returns a figure or None."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import pandas as pd
 from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
+from harness.labels import Labels
 from systems.cases import CASES, standard_grid
 
 __all__ = ["PLOTS", "SCALING_PLOTS", "make_plots"]
@@ -31,7 +33,7 @@ def _legend_beside(ax) -> None:
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
 
 
-def figure3(frames: dict):
+def figure3(frames: dict, names: Labels):
     """Best and worst trajectory (delta and omega of every machine, one line each), predicted vs
     reference, for each PINN configuration's first seed (the paper's figure 3)."""
     acc = ok(frames.get("accuracy"))
@@ -60,7 +62,7 @@ def figure3(frames: dict):
                 lines = ax.plot(t, pred, lw=1.2, ls="--")
                 for line in lines[1:]:
                     line.set_color(lines[0].get_color())
-                lines[0].set_label(f"{label(r.to_frame().T).iloc[0]}")
+                lines[0].set_label(names(label(r.to_frame().T).iloc[0]))
             unit = "rad" if quantity == "delta" else "rad/s"
             ax.set_title(f"{which} trajectory: {quantity}")
             ax.set_ylabel(f"{quantity} ({unit})")
@@ -74,7 +76,7 @@ def figure3(frames: dict):
     return fig
 
 
-def work_precision_plot(frames: dict):
+def work_precision_plot(frames: dict, names: Labels):
     wp = ok(frames.get("work_precision"))
     if wp.empty:
         return None
@@ -83,10 +85,10 @@ def work_precision_plot(frames: dict):
     fig, ax = plt.subplots(figsize=(8, 6))
     for name, g in wp[~trained(wp)].groupby("label", sort=False):
         g = g.sort_values("rel_l2_delta")
-        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, color=colour[name], label=name)
+        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, color=colour[name], label=names(name))
     for name, g in wp[trained(wp)].groupby("label", sort=False):
         ax.scatter(g["rel_l2_delta"], g["median_s"], marker="*", s=140, zorder=3, color=colour[name],
-                   label=f"{name} (PINN)")
+                   label=f"{names(name)} (PINN)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("rel. L2 error of delta on the 100 x 201 grid")
@@ -98,7 +100,7 @@ def work_precision_plot(frames: dict):
     return fig
 
 
-def latency_t1_plot(frames: dict):
+def latency_t1_plot(frames: dict, names: Labels):
     lat = ok(frames.get("latency"))
     if lat.empty or "kind" not in lat:
         return None
@@ -111,7 +113,7 @@ def latency_t1_plot(frames: dict):
     for name, g in lat.groupby("label", sort=False):
         g = g.sort_values("t1_s")
         ax.errorbar(g["t1_s"], g["median_s"], yerr=[g["median_s"] - g["q25_s"], g["q75_s"] - g["median_s"]],
-                    marker="o", ms=4, capsize=2, color=colour[name], label=name,
+                    marker="o", ms=4, capsize=2, color=colour[name], label=names(name),
                     ls="--" if trained(g).any() else "-")
     ax.set_yscale("log")
     ax.set_xlabel("t1 (s)")
@@ -123,7 +125,7 @@ def latency_t1_plot(frames: dict):
     return fig
 
 
-def crossover_plot(frames: dict):
+def crossover_plot(frames: dict, names: Labels):
     """Single-point cost against t1 for the fastest PINN path and the fastest compiled classical
     option at least as accurate (`harness.verdict.crossover`), with the crossover if there is one."""
     from harness.verdict import crossover
@@ -132,8 +134,8 @@ def crossover_plot(frames: dict):
     if x is None:
         return None
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(x["t1_s"], 1e6 * x["classical_s"], marker="o", label=f"{x['classical']} (classical, compiled)")
-    ax.plot(x["t1_s"], 1e6 * x["pinn_s"], marker="*", ms=10, ls="--", label=f"{x['pinn']} (PINN)")
+    ax.plot(x["t1_s"], 1e6 * x["classical_s"], marker="o", label=f"{names(x['classical'])} (classical, compiled)")
+    ax.plot(x["t1_s"], 1e6 * x["pinn_s"], marker="*", ms=10, ls="--", label=f"{names(x['pinn'])} (PINN)")
     if x["how"] == "crossover":
         ax.axvline(x["t1_cross_s"], color="grey", lw=1)
         ax.annotate(f"crossover t1 = {x['t1_cross_s']:.3g} s", (x["t1_cross_s"], ax.get_ylim()[1]),
@@ -148,7 +150,7 @@ def crossover_plot(frames: dict):
     return fig
 
 
-def identification_plot(frames: dict):
+def identification_plot(frames: dict, names: Labels):
     """Error of m and d per pair: one colour per solver and config, one marker per data source and
     noise level, the solvers side by side within each pair; two legends beside the axes."""
     df = ok(frames.get("identification"))
@@ -176,7 +178,7 @@ def identification_plot(frames: dict):
         ax.set_title(f"relative error of {name}")
         ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
-    fig.legend([Line2D([], [], ls="", marker="o", color=colour[spec]) for spec in specs], specs,
+    fig.legend([Line2D([], [], ls="", marker="o", color=colour[spec]) for spec in specs], [names(s) for s in specs],
                fontsize=7, title="solver", title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.95))
     fig.legend([Line2D([], [], ls="", marker=marker[k], color="grey") for k in kinds],
                [f"{data}, noise {noise:.0%}" for data, noise in kinds],
@@ -184,7 +186,7 @@ def identification_plot(frames: dict):
     return fig
 
 
-def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax) -> None:
+def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax, names: Labels) -> None:
     """`column` against N, one line per adapter spec, log-log; the fitted slope in the legend."""
     from harness.scaling_tables import log_log_slope
 
@@ -197,7 +199,7 @@ def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax) -> None:
         slope, _ = log_log_slope(g["N"].to_numpy(float)[coupled], g[column].to_numpy(float)[coupled])
         tag = "" if np.isnan(slope) else f" (N^{slope:.2f})"
         ax.plot(g["N"], g[column], "o-" if not g["trains"].iloc[0] else "s--", color=colours[name],
-                label=f"{name}{tag}", ms=4)
+                label=f"{names(name)}{tag}", ms=4)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("machines N")
@@ -205,7 +207,7 @@ def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax) -> None:
     ax.grid(True, which="both", alpha=0.3)
 
 
-def scaling_cost_plot(frames: dict):
+def scaling_cost_plot(frames: dict, names: Labels):
     """Preparation, grid query, single point and peak memory against N (log-log), every adapter."""
     frame = frames.get("scaling_frame")
     if frame is None or frame.empty:
@@ -213,7 +215,7 @@ def scaling_cost_plot(frames: dict):
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
     for ax, (column, title) in zip(axes.ravel(), (("prep_s", "preparation (s)"), ("grid_s", "grid query (s)"),
                                                    ("point_s", "single point (s)"), ("peak_rss_mib", "peak memory (MiB)"))):
-        _log_log(frame, column, title, ax)
+        _log_log(frame, column, title, ax, names)
     handles, labels = axes[0, 1].get_legend_handles_labels()
     fig.legend(handles, [lab.split(" (N^")[0] for lab in labels], fontsize=7, loc="upper left",
                bbox_to_anchor=(1.0, 0.95))
@@ -222,13 +224,13 @@ def scaling_cost_plot(frames: dict):
     return fig
 
 
-def scaling_accuracy_plot(frames: dict):
+def scaling_accuracy_plot(frames: dict, names: Labels):
     """Rel. L2 of the angles (COI-relative without an infinite bus) against N, every adapter."""
     frame = frames.get("scaling_frame")
     if frame is None or frame.empty:
         return None
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    _log_log(frame.assign(label=frame["label"]), "rel_l2", "rel. L2 of the angles", ax)
+    _log_log(frame.assign(label=frame["label"]), "rel_l2", "rel. L2 of the angles", ax, names)
     _legend_beside(ax)
     return fig
 
@@ -241,16 +243,18 @@ SCALING_PLOTS = {"scaling_cost": scaling_cost_plot, "scaling_accuracy": scaling_
 
 
 def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "", names: dict | None = None,
-               ) -> list[str]:
-    """Write every plot of `names` (default `PLOTS`) that has data as `<name><suffix>.png` and `.pdf`;
-    return the file stems."""
+               labels: Labels | None = None) -> list[str]:
+    """Write every plot of `names` (default `PLOTS`) that has data as `<name><suffix>.png` and `.pdf`,
+    configurations named by `labels` (default: `Labels` of `frames`, as in the tables); return the
+    file stems."""
     import io
 
     from harness.store import atomic_write
 
+    labels = labels or Labels(frames)
     written = []
     for name, build in (PLOTS if names is None else names).items():
-        fig = build(frames)
+        fig = build(frames, labels)
         if fig is None:
             continue
         for ext in ("png", "pdf"):

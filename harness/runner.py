@@ -39,8 +39,8 @@ from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
 from systems.cases import Case
 
-__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "interrupted_message",
-           "open_results", "outcome", "plan", "run_suites", "run_unit"]
+__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "inline",
+           "interrupted_message", "open_results", "outcome", "plan", "run_suites", "run_unit"]
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
@@ -161,6 +161,15 @@ def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) ->
         return list(run_unit(unit, settings, todo))
 
 
+def inline(jobs: list[tuple[Unit, tuple[str, ...]]], settings: Settings
+           ) -> Iterator[tuple[Unit, str, list[dict] | None]]:
+    """The executor of this process (threads as pinned by the caller), each unit of work recorded
+    as it ends: `execute`'s default. The executors of other processes are in `harness.executors`."""
+    for unit, todo in jobs:
+        for work, rows in run_unit(unit, settings, todo):
+            yield unit, work, rows
+
+
 def _progress_bar(total: int, enabled: bool | None):
     """The one progress policy: a bar of units of work on stderr, by default only on a terminal."""
     if not (sys.stderr.isatty() if enabled is None else enabled):
@@ -181,12 +190,10 @@ def failed(row: dict) -> bool:
 def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor=None,
             progress: bool | None = None, done: set[tuple] | None = None) -> dict[str, int]:
     """Run every unit of work of `units` not in `done` (keys of completed units, e.g. from
-    `RowStore.prepare_resume`) on `executor` (default: this process, `harness.executors.inline`)
+    `RowStore.prepare_resume`) on `executor` (default: this process, `inline`)
     and record each as it completes. Returns counts of units of work: {"ok", "skipped", "failed",
     "lost"} (failed: a row of it `failed`; skipped: none failed, some declared a skip; lost: the
     executor broke before returning them; nothing is recorded, `--resume` runs them)."""
-    from harness import executors
-
     done = set() if done is None else done
     jobs = []
     for unit in units:
@@ -196,7 +203,7 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
     counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
     bar = _progress_bar(sum(len(todo) for _, todo in jobs), progress)
     try:
-        for unit, work, rows in (executor or executors.inline)(jobs, settings):
+        for unit, work, rows in (executor or inline)(jobs, settings):
             if rows is None:
                 counts["lost"] += 1
             else:
@@ -280,9 +287,9 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
     out = Path(out)
     if resume and same:
         _check_same_run(out / "metadata.json", same, command)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
-    try:
+    try:  # inside a folder the user cannot enter, even exists() raises (PermissionError)
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
         out.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out):
             pass

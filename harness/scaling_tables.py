@@ -9,12 +9,18 @@ import pandas as pd
 
 from harness.analysis import break_even, fmt, label, ok, trained
 
-__all__ = ["COSTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_frame", "scaling_table", "status_by_n"]
+__all__ = ["COSTS", "LARGE_N_POINTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_frame",
+           "scaling_table", "status_by_n"]
 
 # The cost columns of `scaling_frame`, with their names in the tables.
 COSTS = {"prep_s": "preparation (s)", "grid_s": "grid query (s)", "point_s": "single point (s)",
          "peak_rss_mib": "peak memory (MiB)"}
 _KEYS = ["case", "solver", "config", "variant", "seed"]
+# The growth at scale: the slope over this many of the largest N measured, beside the global fit
+# (which the small-N overhead dominates).
+LARGE_N_POINTS = 3
+# The scaling family's horizon (s), for rows written before the suite recorded `horizon_s`
+_DEFAULT_HORIZON_S = 10.0
 # A PINN this far off (rel. L2 of the angles) has not learnt the trajectories: no break-even is
 # computed for it (any classical solver is "as accurate" and slower than a network's forward pass).
 UNCONVERGED_REL_L2 = 0.1
@@ -24,7 +30,9 @@ def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """One row per adapter spec and case measured by the scaling suite: N (`machines`), the spec's
     `label`, preparation (its fit row's `fit_s`, s), grid and single-point query medians (s), peak
     resident memory (MiB, when the unit ran in a process of its own), rel. L2 and the grid size;
-    `trains` for PINNs. Only the first seed of a trained spec is measured by the suite."""
+    `trains` for PINNs; `per_sim_s`, the grid query's seconds per trajectory per simulated second
+    (grid median / trajectories / horizon). Only the first seed of a trained spec is measured by
+    the suite."""
     scaling = ok(frames.get("scaling"))
     if scaling.empty:
         return pd.DataFrame()
@@ -40,6 +48,8 @@ def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
         "peak_rss_mib": scaling.get("peak_rss_mib", pd.Series(np.nan, index=scaling.index)),
         "rel_l2": scaling["rel_l2"], "n_trajectories": scaling["n_trajectories"],
     })
+    horizon = scaling["horizon_s"] if "horizon_s" in scaling else pd.Series(np.nan, index=scaling.index)
+    out["per_sim_s"] = out["grid_s"] / out["n_trajectories"] / horizon.fillna(_DEFAULT_HORIZON_S)
     return out.sort_values(["label", "N"]).reset_index(drop=True)
 
 
@@ -47,10 +57,11 @@ def scaling_table(frame: pd.DataFrame) -> pd.DataFrame:
     """The scaling rows for reading: per adapter spec and N, every cost and the accuracy."""
     if frame.empty:
         return frame
-    table = frame[["label", "N", "case", *COSTS, "rel_l2"]].copy()
-    for column in (*COSTS, "rel_l2"):
+    table = frame[["label", "N", "case", *COSTS, "per_sim_s", "rel_l2"]].copy()
+    for column in (*COSTS, "per_sim_s", "rel_l2"):
         table[column] = table[column].map(fmt)
-    return table.rename(columns={**COSTS, "label": "adapter", "rel_l2": "rel. L2 (angles)"})
+    return table.rename(columns={**COSTS, "label": "adapter", "rel_l2": "rel. L2 (angles)",
+                                 "per_sim_s": "s per simulated s (one trajectory)"})
 
 
 def log_log_slope(n: np.ndarray, cost: np.ndarray) -> tuple[float, int]:
@@ -65,8 +76,9 @@ def log_log_slope(n: np.ndarray, cost: np.ndarray) -> tuple[float, int]:
 
 def exponents(frame: pd.DataFrame, min_n: int = 2) -> pd.DataFrame:
     """Fitted exponents b of cost ~ N^b per adapter spec and cost (least squares in log-log over the
-    cases with N >= `min_n`: the SMIB's N = 1 has no coupling to scale), the N range fitted, the
-    largest N measured."""
+    cases with N >= `min_n`: the SMIB's N = 1 has no coupling to scale), the N range fitted; beside
+    each, the slope over the `LARGE_N_POINTS` largest N measured (the growth at scale, which the
+    global fit understates when small-N overhead dominates it) and that N range."""
     if frame.empty:
         return pd.DataFrame()
     rows = []
@@ -76,8 +88,14 @@ def exponents(frame: pd.DataFrame, min_n: int = 2) -> pd.DataFrame:
             continue
         row = {"adapter": name, "N range": f"{g['N'].min()}-{g['N'].max()}"}
         for column, title in COSTS.items():
-            slope, points = log_log_slope(g["N"].to_numpy(float), g[column].to_numpy(float))
-            row[title.split(" (")[0] + " exponent"] = "-" if np.isnan(slope) else f"{slope:.2f} ({points} N)"
+            kind = title.split(" (")[0]
+            measured = g[np.isfinite(g[column]) & (g[column] > 0)]
+            slope, points = log_log_slope(measured["N"].to_numpy(float), measured[column].to_numpy(float))
+            row[f"{kind} exponent"] = "-" if np.isnan(slope) else f"{slope:.2f} ({points} N)"
+            largest = measured.nlargest(LARGE_N_POINTS, "N")
+            slope, points = log_log_slope(largest["N"].to_numpy(float), largest[column].to_numpy(float))
+            row[f"{kind} exponent, largest {LARGE_N_POINTS} N"] = (
+                "-" if np.isnan(slope) else f"{slope:.2f} (N {largest['N'].min()}-{largest['N'].max()})")
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import pandas as pd
 
-from harness.atomic import atomic_write
+from solvers.atomic import atomic_write
 
 __all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "atomic_write", "unit_key"]
 

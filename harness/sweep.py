@@ -410,7 +410,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         return 0
 
     from harness import executors
-    from harness.report import metadata
+    from harness.provenance import metadata
     from harness.runner import execute, interrupted_message, open_results, outcome
     from harness.store import atomic_write
 

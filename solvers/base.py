@@ -215,10 +215,11 @@ class AbstractSolver(abc.ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if cls.__dict__.get("SCHEMA") is not None:
+        schema = cls.__dict__.get("SCHEMA")  # declared by this class, not inherited
+        if schema is not None:
             if "OPTIONS" in cls.__dict__:
                 raise TypeError(f"{cls.__name__}: declare options once, in SCHEMA; OPTIONS is derived")
-            cls.OPTIONS = defaults(cls.SCHEMA)
+            cls.OPTIONS = defaults(schema)
         for attribute, known in (("CASE_KINDS", frozenset(KINDS)), ("CONFIG_MARKS", CONFIG_MARKS)):
             for config, values in getattr(cls, attribute).items():
                 if config not in cls.CONFIGS:
@@ -277,6 +278,8 @@ class AbstractSolver(abc.ABC):
             raise NotFittedError(f"{self.name}: call fit() (or load()) before solve()")
         # The fast path, inlined (a Python call costs ~0.1 us here): see `_small_vector`.
         items = t_query.tolist() if type(t_query) is np.ndarray and t_query.dtype is _F64 else None
+        t: np.ndarray | None  # None: not taken by the fast path
+        p1: np.ndarray | None
         if type(items) is list and 0 < len(items) <= _FAST_MAX and type(items[0]) is float:
             t, t_hi = t_query, items[0]
             for x in items:
@@ -352,8 +355,10 @@ class AbstractSolver(abc.ABC):
         # too little data is an outcome (success False), not a programming error; fewer samples than
         # unknowns leave nothing to fit, more are fitted and the estimate kept, though not trusted
         if len(obs) < 2:
+            reason = data_shortfall(obs)
+            assert reason is not None  # fewer than 2 samples are always too few (MIN_DISTINCT_SAMPLES > 1)
             nan = np.full(self.case.n, np.nan)
-            return Identification(nan, nan, time.perf_counter() - start, 0, False, data_shortfall(obs),
+            return Identification(nan, nan, time.perf_counter() - start, 0, False, reason,
                                   nan, nan, np.full((self.case.n, 2), np.nan), np.full((self.case.n, 2), np.nan))
         est = Estimate(*self._identify(obs))  # a plain 5-tuple is an estimate without uncertainty
         verdict = assess(est, data_shortfall(obs))

@@ -5,6 +5,7 @@ from __future__ import annotations
 from functools import lru_cache
 from typing import ClassVar, Literal
 
+import casadi as ca
 import numpy as np
 
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, Estimate, SolveError
@@ -20,11 +21,6 @@ from solvers.classical import (
 from solvers.options import PositiveInt
 from systems.cases import Case, Observations
 from systems.model import accelerations, coupling
-
-try:
-    import casadi as ca
-except ImportError:  # pragma: no cover - the registry reports the adapter as not installed
-    ca = None
 
 
 class CVODESOptions(ToleranceOptions):

@@ -1,4 +1,5 @@
-"""Machinery shared by the ODE-solver adapters: time ordering and least-squares identification."""
+"""Machinery shared by the ODE-solver adapters: the step rule, search boxes, batching over P1 and
+least-squares identification from scattered observations."""
 
 from __future__ import annotations
 

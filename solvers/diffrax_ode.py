@@ -23,7 +23,7 @@ from solvers.classical import (
     search_boxes,
 )
 from solvers.options import PositiveFloat, PositiveInt
-from solvers.pinn.jax_pinn import configure_threads
+from solvers.threads import configure_threads
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 

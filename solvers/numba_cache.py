@@ -36,8 +36,9 @@ def main() -> int:
             kernel = numba_kernels.kernel(method, sens, parallel, 1)
             kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, options)
     try:
+        from solvers.pinn.architecture import Architecture
         from solvers.pinn.compiled import NumbaEvaluator
-        from solvers.pinn.spec import Architecture, PinnConfig
+        from solvers.pinn.config import PinnConfig
     except ImportError:  # the PINN package needs scipy only; be safe all the same
         pass
     else:

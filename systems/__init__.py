@@ -1,0 +1,9 @@
+"""The problem: cases, the swing model, network building, the tight reference.
+
+Importing the package imports the modules that register network cases in `systems.cases.CASES`
+(`register_case`); a case is built on first use, so these imports solve no power flow. `CASES`
+lists cases in the order they were registered: the paper's networks before the scaling family.
+"""
+
+from systems import grids  # noqa: F401, I001 - its builders register themselves, first
+from systems import family  # noqa: F401 - likewise

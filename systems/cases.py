@@ -2,13 +2,16 @@
 
 Units: angles in rad, angular speeds in rad/s, times in s, powers and susceptances in p.u.
 Nothing here imports the rest of the project; solvers take a `Case`, suites take solvers.
+
+`CASES` is the registry of named cases: the SMIB cases here, and every builder that
+`register_case` registers (`systems.grids`, `systems.family`, which the `systems` package imports).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
 
@@ -16,7 +19,6 @@ import numpy as np
 
 __all__ = [
     "CASES",
-    "FAMILY_CASES",
     "IDENTIFICATION_PAIRS",
     "KINDS",
     "NETWORK",
@@ -30,6 +32,7 @@ __all__ = [
     "check_array",
     "check_number",
     "per_machine",
+    "register_case",
     "smib_case",
     "standard_grid",
 ]
@@ -329,45 +332,67 @@ SMIB_IDENTIFICATION = smib_case(
     t_final=20.0, p1_min=0.10, p1_max=0.18, source="Misyris et al. 2020, Sec. IV-B",
 )
 SMIB_CASES = (SMIB_INFERENCE, SMIB_IDENTIFICATION)
-# Multi-machine cases are built from network data by `systems.grids` on first use (a power flow).
+# The multi-machine cases of the paper's runs (built by `systems.grids`): what a run measures by
+# default besides the SMIB. Every registered case can be named on the command line.
 NETWORK_CASES = ("wscc9", "kundur4", "ieee39")
-# The scaling family's larger networks (issue 13), built by `systems.family` on first use; its small
-# end, wscc9 and ieee39, is in NETWORK_CASES. In order of size (machines: 54, 69, 260, 510, 1445).
-FAMILY_CASES = ("case118", "case300", "case1354pegase", "case2869pegase", "case9241pegase")
+
+CaseBuilder = Callable[[], Case]
 
 
 class _Cases(Mapping):
-    """name -> Case; the network cases are built (pandapower, a power flow) on first access, by
-    indexing: iterating and `in` give names only."""
+    """name -> Case, filled by `register_case`. A case is built on first access, by indexing (a
+    network case solves a power flow, pandapower takes seconds to import); iterating and `in`
+    give names only. An unknown name is a KeyError that lists the known ones."""
 
     def __init__(self) -> None:
-        self._built: dict[str, Case] = {case.name: case for case in SMIB_CASES}
+        self._builders: dict[str, CaseBuilder] = {}
+        self._built: dict[str, Case] = {}
+
+    def register(self, name: str, builder: CaseBuilder) -> None:
+        if name in self._builders:
+            raise ValueError(f"case {name!r} is registered twice")
+        self._builders[name] = builder
 
     def __getitem__(self, name: str) -> Case:
         if name not in self._built:
-            if name in NETWORK_CASES:
-                from systems import grids
-
-                self._built[name] = getattr(grids, name)()
-            elif name in FAMILY_CASES:
-                from systems.family import family_case
-
-                self._built[name] = family_case(name)
-            else:
-                raise KeyError(name)
+            if name not in self._builders:
+                raise KeyError(f"unknown case {name!r}; known: {', '.join(self._builders)}")
+            case = self._builders[name]()
+            if case.name != name:
+                raise ValueError(f"the builder of case {name!r} returned a case named {case.name!r}")
+            self._built[name] = case
         return self._built[name]
 
     def __contains__(self, name) -> bool:  # by name: never builds a case
-        return name in self._built or name in NETWORK_CASES or name in FAMILY_CASES
+        return name in self._builders
 
     def __iter__(self):
-        return iter([case.name for case in SMIB_CASES] + list(NETWORK_CASES) + list(FAMILY_CASES))
+        return iter(list(self._builders))
 
     def __len__(self) -> int:
-        return len(SMIB_CASES) + len(NETWORK_CASES) + len(FAMILY_CASES)
+        return len(self._builders)
 
 
-CASES: Mapping[str, Case] = _Cases()
+CASES = _Cases()
+
+
+def register_case(name: str) -> Callable[[CaseBuilder], CaseBuilder]:
+    """Decorator: register a function that builds the `Case` called `name` (taking no arguments)
+    in `CASES`; it runs on the first `CASES[name]`, once per process. Returns the function."""
+
+    def register(builder: CaseBuilder) -> CaseBuilder:
+        CASES.register(name, builder)
+        return builder
+
+    return register
+
+
+def _constant(case: Case) -> CaseBuilder:
+    return lambda: case
+
+
+for _case in SMIB_CASES:
+    register_case(_case.name)(_constant(_case))
 
 # The paper identifies 10 (m, d) pairs in m in [0.1, 0.4], d in [0.05, 0.15] but does not list them.
 # Ours: m and d both evenly spaced over their ranges, paired in order (m_i, d_i), i = 0..9, so the

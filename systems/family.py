@@ -1,4 +1,4 @@
-"""The scaling family (issue 13): real networks of growing size as classical N-machine swing systems.
+"""The scaling family: real networks of growing size as classical N-machine swing systems.
 
 The small end is the paper's wscc9 (3 machines) and ieee39 (10), with published machine data
 (`systems.grids`). The rest are the MATPOWER cases that pandapower ships (`pandapower.networks`):
@@ -32,7 +32,7 @@ Machine data rule (for the cases without dynamic data):
   * Transformer phase shifts are set to 0 (the PEGASE cases have a few, of < 1 deg): a phase
     shifter makes Ybus, and so G and B, unsymmetric, which `Case` does not allow. The power flow is
     solved after that, so the equilibrium is exact for the network modelled.
-Power flow: pandapower's Newton-Raphson at 1e-10 MVA (as `grids`), numba off (measured: no faster
+Power flow: `network.solve_power_flow` (as `grids`): Newton-Raphson at 1e-10 MVA, numba off (no faster
 at 9241 buses, 0.4 s, and it compiles for seconds). The reduction is sparse, as for every net
 (`network.kron_reduce_sparse`).
 """
@@ -43,26 +43,36 @@ import functools
 import math
 from typing import TYPE_CHECKING
 
-from systems.cases import FAMILY_CASES, Case
-from systems.network import ClassicalModel, classical_model, network_case
+from systems.cases import CASES, Case, register_case
+from systems.network import T_FINAL, ClassicalModel, classical_model, network_case, solve_power_flow
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
 
-__all__ = ["FAMILY", "F_HZ", "H_S", "RATING_FLOOR_MVA", "XD_PRIME", "family_case", "family_model",
-           "family_size", "merge_machines"]
+__all__ = ["FAMILY", "FAMILY_CASES", "F_HZ", "H_S", "RATING_FLOOR_MVA", "XD_PRIME", "family_case",
+           "family_model", "family_size", "merge_machines"]
 
+# The family's larger networks, each a MATPOWER case of `pandapower.networks` of that name, in order
+# of size (machines: 54, 69, 260, 510, 1445): system frequency (Hz: US 60, European PEGASE 50) and
+# origin. Each is registered in `systems.cases.CASES` (bottom of this module); the family's small
+# end, wscc9 and ieee39, is `systems.grids`'.
+_PEGASE = "PEGASE, Josz et al. arXiv:1603.01533"
+_MEMBERS = {
+    "case118": (60.0, "IEEE 118-bus system"),
+    "case300": (60.0, "IEEE 300-bus system"),
+    "case1354pegase": (50.0, _PEGASE),
+    "case2869pegase": (50.0, _PEGASE),
+    "case9241pegase": (50.0, _PEGASE),
+}
+FAMILY_CASES = tuple(_MEMBERS)
 # The family, in order of size (machines: 3, 10, 54, 69, 260, 510, 1445).
 FAMILY: tuple[str, ...] = ("wscc9", "ieee39", *FAMILY_CASES)
 # The machine data rule (module docstring): s and p.u. on the machine's rating; the rating floor, MVA.
 H_S = 4.0
 XD_PRIME = 0.3
 RATING_FLOOR_MVA = 10.0
-# System frequency (Hz) of each case without dynamic data: US 60 Hz, European (PEGASE) 50 Hz.
-F_HZ = {"case118": 60.0, "case300": 60.0, "case1354pegase": 50.0, "case2869pegase": 50.0,
-        "case9241pegase": 50.0}
-_ORIGIN = {"case118": "IEEE 118-bus system", "case300": "IEEE 300-bus system",
-           **{name: "PEGASE, Josz et al. arXiv:1603.01533" for name in FAMILY_CASES if "pegase" in name}}
+# System frequency (Hz) of each case without dynamic data.
+F_HZ = {name: f_hz for name, (f_hz, _) in _MEMBERS.items()}
 # pandapower.networks loader of each family member (wscc9 and ieee39 are MATPOWER case9 and case39).
 _LOADER = {"wscc9": "case9", "ieee39": "case39", **{name: name for name in FAMILY_CASES}}
 # Elements that classical_model has no model for: an in-service one is refused.
@@ -113,7 +123,8 @@ def merge_machines(net: pandapowerNet) -> dict[int, float]:
     """One machine per bus, in place, before the power flow. At a bus with several in-service gen
     and ext_grid elements the first ext_grid (else the first gen) stays; a kept gen takes the
     others' P set points (a kept ext_grid, the slack, takes them up in the flow), and the others go
-    out of service: the flow then gives the kept element the bus's summed P and Q, as before.
+    out of service: the flow then gives the kept element the bus's summed P and Q, as the merged
+    elements had together.
     Returns {bus: S_plate}, MVA: the sum of `_nameplate` over each machine bus's elements."""
     plate = {}
     for bus, elements in _machines(net).items():
@@ -134,8 +145,6 @@ def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
     f_hz: the system frequency (Hz). Raises ValueError naming
     `net` if it has an in-service element classical_model does not model (ward, storage, dcline, ...).
     """
-    from systems.grids import _solve
-
     present = [t for t in _UNSUPPORTED if t in net and len(net[t]) and net[t].in_service.astype(bool).any()]
     if present:
         raise ValueError(f"net has in-service {', '.join(present)} element(s), which the classical "
@@ -143,7 +152,7 @@ def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
     if len(net.trafo):
         net.trafo["shift_degree"] = 0.0
     plate = merge_machines(net)
-    _solve(net)
+    solve_power_flow(net)
     rows = [(bus, *elements[0]) for bus, elements in sorted(_machines(net).items())]
     p = [float(net[f"res_{t}"].at[i, "p_mw"]) for _, t, i in rows]
     s = [abs(complex(net[f"res_{t}"].at[i, "p_mw"], net[f"res_{t}"].at[i, "q_mvar"])) for _, t, i in rows]
@@ -157,22 +166,23 @@ def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
 @functools.cache
 def family_case(name: str) -> Case:
     """The `Case` of family member `name` (FAMILY), built once per process: wscc9 and ieee39 are
-    `grids.wscc9()` and `grids.ieee39()`; the others follow the module's machine data rule."""
+    `CASES["wscc9"]` and `CASES["ieee39"]` (`systems.grids`); the others follow the module's machine
+    data rule."""
     _check_name(name)
-    if name in ("wscc9", "ieee39"):
-        from systems import grids
-
-        return getattr(grids, name)()
-    from systems.grids import T_FINAL
-
+    if name not in FAMILY_CASES:
+        return CASES[name]
     net = _load(name)
     shifts = net.trafo.shift_degree.values[net.trafo.shift_degree.values != 0] if len(net.trafo) else []
     model = family_model(net, F_HZ[name])
-    shifted = (f"; phase shifts of {len(shifts)} transformers (|shift| <= {max(abs(shifts)):.2g} deg) set "
-               "to 0" if len(shifts) else "")
+    shifted = (f"; phase shifts of {len(shifts)} transformers (|shift| <= {max(abs(s) for s in shifts):.2g} "
+               "deg) set to 0" if len(shifts) else "")
     return network_case(name, model, t_final=T_FINAL, source=(
-        f"network: MATPOWER {name} ({_ORIGIN[name]}) via pandapower.networks.{name}{shifted}; machines: "
+        f"network: MATPOWER {name} ({_MEMBERS[name][1]}) via pandapower.networks.{name}{shifted}; machines: "
         f"every gen and ext_grid, one per bus, H = {H_S:g} s, x'd = {XD_PRIME:g} p.u. on rating max(sn_mva "
         f"or P_max, |S_flow|, {RATING_FLOOR_MVA:g} MVA) (typical values: Kundur, Power System Stability "
         f"and Control, Tables 3.2, 4.2); {F_HZ[name]:g} Hz; generator 1 = the largest P; damping "
         "d = 0.5 m (ours)"))
+
+
+for _name in FAMILY_CASES:
+    register_case(_name)(functools.partial(family_case, _name))

@@ -3,78 +3,42 @@
 Each builder solves a pandapower power flow and returns the classical model of `systems.network`
 as a `Case` (system base 100 MVA, 60 Hz; no infinite bus). Machine k = 0 ("generator 1") is
 named in each builder. pandapower is imported inside the builders (it takes seconds to import),
-and each case is built once per process (functools.cache).
+and each case is built once per process (functools.cache). A case is one builder registered in
+`systems.cases.CASES` by `register_case`; its `<name>_net()` gives the solved net itself.
 
 Common choices (not from the sources): damping d_k = 0.5 m_k (`network.DAMPING_PER_INERTIA`),
-search boxes (m/4, 4m), (d/4, 4d), P1 = generator 1's operating P +- 30 %, horizon T_FINAL.
+search boxes (m/4, 4m), (d/4, 4d), P1 = generator 1's operating P +- 30 %, horizon T_FINAL
+(`systems.network`).
 """
 
 from __future__ import annotations
 
-import copy
 import functools
 import math
-import warnings
 
-from systems.cases import Case
-from systems.network import bus_indices, classical_model, network_case
+from systems.cases import Case, register_case
+from systems.network import T_FINAL, bus_indices, classical_model, network_case, solve_power_flow
 
 __all__ = ["T_FINAL", "ieee39", "ieee39_net", "kundur4", "kundur4_net", "wscc9", "wscc9_net"]
 
-# Horizon (s): the first swings (periods ~0.5-2 s) and their damping (time constant 4 s) show.
-T_FINAL = 10.0
-# Power-flow tolerance (MVA) for pandapower.runpp: tight, so p_m matches the flow to ~1e-10 p.u.
-_PF_TOL_MVA = 1e-10
-
-
-def _solve(net):
-    """Run pandapower's AC power flow on `net` (tight tolerance; numba off: on nets this small its
-    compilation costs seconds and saves nothing) and return it."""
-    import pandapower as pp
-
-    with warnings.catch_warnings():  # pandapower 3 on its own stored case39: a notice, not a fault
-        warnings.filterwarnings("ignore", "tap_dependency_table is missing", DeprecationWarning)
-        pp.runpp(net, tolerance_mva=_PF_TOL_MVA, numba=False)
-    return net
-
-
-@functools.cache
-def _solved(name: str):
-    """The solved net behind case `name`, built once per process: read it, never change it."""
-    return {"wscc9": _wscc9_net, "kundur4": _kundur4_net, "ieee39": _ieee39_net}[name]()
-
 
 def wscc9_net():
-    """The solved pandapower net of the WSCC 9-bus system (bus names: MATPOWER numbers), a private copy."""
-    return copy.deepcopy(_solved("wscc9"))
-
-
-def kundur4_net():
-    """The solved pandapower net of Kundur's two-area system (bus names: the book's numbers 1..11),
-    a private copy."""
-    return copy.deepcopy(_solved("kundur4"))
-
-
-def ieee39_net():
-    """The solved pandapower net of the IEEE 39-bus system (bus names: MATPOWER numbers), a private copy."""
-    return copy.deepcopy(_solved("ieee39"))
-
-
-def _wscc9_net():
+    """The solved pandapower net of the WSCC 9-bus system (bus names: MATPOWER numbers), built anew."""
     import pandapower.networks as pn
 
     net = pn.case9()  # MATPOWER case9: the WSCC network, loads and dispatch (Anderson & Fouad)
     # MATPOWER case9 sets every generator to 1.0 p.u.; Anderson & Fouad's flow has 1.04, 1.025, 1.025:
     net.ext_grid["vm_pu"] = 1.04  # bus 1
     net.gen.loc[net.gen.bus.isin(bus_indices(net, [2, 3])), "vm_pu"] = 1.025  # buses 2 and 3
-    return _solve(net)
+    return solve_power_flow(net)
 
 
+@register_case("wscc9")
 @functools.cache
 def wscc9() -> Case:
     """WSCC 3-machine 9-bus system. Machines: generators at buses 1, 2, 3 (MATPOWER case9 gen order;
     generator 1 = bus 1, the slack, pandapower's ext_grid)."""
-    net = _solved("wscc9")
+    net = wscc9_net()
     model = classical_model(
         net, bus_indices(net, [1, 2, 3]),  # MATPOWER case9 gen table rows: buses 1, 2, 3
         # Anderson & Fouad, "Power System Control and Stability", Table 2.1 (stored energy 2364, 640,
@@ -89,7 +53,9 @@ def wscc9() -> Case:
         "d = 0.5 m (ours)"))
 
 
-def _kundur4_net():
+def kundur4_net():
+    """The solved pandapower net of Kundur's two-area system (bus names: the book's numbers 1..11),
+    built anew."""
     import pandapower as pp
 
     # All data: P. Kundur, "Power System Stability and Control" (1994), Example 12.6.
@@ -112,14 +78,15 @@ def _kundur4_net():
     for k, p, v in ((1, 700.0, 1.03), (2, 700.0, 1.01), (4, 700.0, 1.01)):  # P (MW), |Vt| (p.u.)
         pp.create_gen(net, bus[k], p_mw=p, vm_pu=v)
     pp.create_ext_grid(net, bus[3], vm_pu=1.03, va_degree=-6.8)  # G3 slack, 1.03 at -6.8 deg
-    return _solve(net)
+    return solve_power_flow(net)
 
 
+@register_case("kundur4")
 @functools.cache
 def kundur4() -> Case:
     """Kundur's two-area 4-machine system. Machines: G1, G2, G3, G4 at buses 1, 2, 3, 4 (the book's
     numbering; generator 1 = G1; G3 is the slack, pandapower's ext_grid)."""
-    net = _solved("kundur4")
+    net = kundur4_net()
     model = classical_model(
         net, bus_indices(net, [1, 2, 3, 4]),
         H=[6.5, 6.5, 6.175, 6.175],  # s on 900 MVA
@@ -132,17 +99,19 @@ def kundur4() -> Case:
         "power flow by pandapower; damping d = 0.5 m (ours)"))
 
 
-def _ieee39_net():
+def ieee39_net():
+    """The solved pandapower net of the IEEE 39-bus system (bus names: MATPOWER numbers), built anew."""
     import pandapower.networks as pn
 
-    return _solve(pn.case39())  # MATPOWER case39 (Athay, Podmore & Virmani 1979; Pai 1989)
+    return solve_power_flow(pn.case39())  # MATPOWER case39 (Athay, Podmore & Virmani 1979; Pai 1989)
 
 
+@register_case("ieee39")
 @functools.cache
 def ieee39() -> Case:
     """IEEE 39-bus New England system. Machines: generators at buses 30, 31, ..., 39 (MATPOWER case39
     gen order; generator 1 = bus 30; bus 31 is the slack, pandapower's ext_grid)."""
-    net = _solved("ieee39")
+    net = ieee39_net()
     # Machine data by bus, s and p.u. on 100 MVA: M. A. Pai, "Energy Function Analysis for Power
     # System Stability" (1989), 10-machine New England data (after Athay et al. 1979); the same as
     # the IEEE PES TR-18 (2015) benchmark's New England machines, there on 100-2000 MVA machine bases

@@ -7,14 +7,15 @@ internal machine nodes: Y_red = G + jB (p.u. on the system base `net.sn_mva`). T
 
     P_e,k(delta) = sum_j E_k E_j (G_kj cos(delta_k - delta_j) + B_kj sin(delta_k - delta_j))  (p.u.)
 
-and p_m = P_e(delta0) equals each machine's power-flow P (checked). Nothing here imports
-pandapower: a solved net is read through its tables and the documented internal structures
-(`net._ppc["internal"]["Ybus"]`, `["V"]`, `net._pd2ppc_lookups["bus"]`, pandapower's
-internal_datastructure tutorial). Machine order is the caller's `machine_buses` order.
+and p_m = P_e(delta0) equals each machine's power-flow P (checked). Only `solve_power_flow`
+imports pandapower (when called): a solved net is read through its tables and the documented
+internal structures (`net._ppc["internal"]["Ybus"]`, `["V"]`, `net._pd2ppc_lookups["bus"]`,
+pandapower's internal_datastructure tutorial). Machine order is the caller's `machine_buses` order.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -26,8 +27,9 @@ from systems.cases import Case, check_array, per_machine
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
 
-__all__ = ["BOX_FACTOR", "BOX_OFFSET", "DAMPING_PER_INERTIA", "P1_SPREAD", "ClassicalModel", "bus_indices",
-           "classical_model", "electrical_power", "kron_reduce", "kron_reduce_sparse", "network_case"]
+__all__ = ["BOX_FACTOR", "BOX_OFFSET", "DAMPING_PER_INERTIA", "P1_SPREAD", "PF_TOL_MVA", "T_FINAL", "ClassicalModel",
+           "bus_indices", "classical_model", "electrical_power", "kron_reduce", "kron_reduce_sparse", "network_case",
+           "solve_power_flow"]
 
 # No source gives damping for these classical models. Ours: d_k = 0.5 m_k (1/s), so each
 # electromechanical mode decays as exp(-t d/(2m)) = exp(-t/4 s): visible over a 10 s horizon.
@@ -39,6 +41,23 @@ BOX_FACTOR = 4.0
 BOX_OFFSET = 2.0
 # The scenario's P1 range: generator 1's operating P +- 30 %.
 P1_SPREAD = 0.3
+# Horizon (s) of the network cases: the first swings (periods ~0.5-2 s) and their damping (time
+# constant 4 s) show.
+T_FINAL = 10.0
+# Power-flow tolerance (MVA) for pandapower.runpp: tight, so p_m matches the flow to ~1e-10 p.u.
+PF_TOL_MVA = 1e-10
+
+
+def solve_power_flow(net: pandapowerNet) -> pandapowerNet:
+    """Run pandapower's AC power flow on `net` in place (tolerance `PF_TOL_MVA`; numba off: on small
+    nets its compilation costs seconds and saves nothing, on 9241 buses it is no faster) and
+    return it."""
+    import pandapower as pp
+
+    with warnings.catch_warnings():  # pandapower 3 on its own stored case39: a notice, not a fault
+        warnings.filterwarnings("ignore", "tap_dependency_table is missing", DeprecationWarning)
+        pp.runpp(net, tolerance_mva=PF_TOL_MVA, numba=False)
+    return net
 
 
 @dataclass(frozen=True)
@@ -253,9 +272,23 @@ def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread:
         raise ValueError(f"box_offset must be in (1 / box_factor, box_factor) = ({1 / box_factor:g}, "
                          f"{box_factor:g}) so that the truth is inside its box, got {box_offset!r}")
     p1 = sorted((model.p_m[0] * (1 - p1_spread), model.p_m[0] * (1 + p1_spread)))
-    n = model.m.size
-    return Case(name=name, m=model.m, d=model.d, delta0=model.delta0, omega0=np.zeros(n), p_m=model.p_m,
-                E=model.E, G=model.G, B=model.B, g_inf=np.zeros(n), b_inf=np.zeros(n), t_final=t_final,
-                p1_min=p1[0], p1_max=p1[1],
-                m_box=box_offset * np.column_stack([model.m / box_factor, model.m * box_factor]),
-                d_box=box_offset * np.column_stack([model.d / box_factor, model.d * box_factor]), source=source)
+    zeros = (0.0,) * model.m.size
+    m_box = box_offset * np.column_stack([model.m / box_factor, model.m * box_factor])
+    d_box = box_offset * np.column_stack([model.d / box_factor, model.d * box_factor])
+    return Case(name=name, m=_floats(model.m), d=_floats(model.d), delta0=_floats(model.delta0), omega0=zeros,
+                p_m=_floats(model.p_m), E=_floats(model.E), G=_rows(model.G), B=_rows(model.B), g_inf=zeros,
+                b_inf=zeros, t_final=t_final, p1_min=p1[0], p1_max=p1[1], m_box=_pairs(m_box),
+                d_box=_pairs(d_box), source=source)
+
+
+# A Case holds tuples of floats (hashable, compared by value): the model's arrays as such
+def _floats(x: np.ndarray) -> tuple[float, ...]:
+    return tuple(np.asarray(x, np.float64).tolist())
+
+
+def _rows(x: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(row) for row in np.asarray(x, np.float64).tolist())
+
+
+def _pairs(x: np.ndarray) -> tuple[tuple[float, float], ...]:
+    return tuple((lo, hi) for lo, hi in np.asarray(x, np.float64).tolist())

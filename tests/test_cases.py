@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,14 +13,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+import systems.cases
 from harness import metrics
 from systems.cases import (
+    CASES,
     IDENTIFICATION_PAIRS,
     SMIB_IDENTIFICATION,
     SMIB_INFERENCE,
     Case,
     Observations,
     check_array,
+    register_case,
     smib_case,
     standard_grid,
 )
@@ -42,6 +47,35 @@ def test_paper_cases_are_one_machine_against_an_infinite_bus():
     assert SMIB_INFERENCE.G == SMIB_INFERENCE.B == ((0.0,),) and SMIB_INFERENCE.E == (1.0,)
     with pytest.raises(dataclasses.FrozenInstanceError):
         SMIB_INFERENCE.m = (1.0,)  # type: ignore[misc]
+
+
+def test_a_case_is_one_registered_builder_built_on_first_use(monkeypatch):
+    monkeypatch.setattr(CASES, "_builders", dict(CASES._builders))  # the test's registrations go after it
+    monkeypatch.setattr(CASES, "_built", dict(CASES._built))
+    calls = []
+
+    @register_case("two-machines")
+    def two_machines() -> Case:
+        calls.append(1)
+        return TWO_MACHINES
+
+    assert "two-machines" in CASES and list(CASES)[-1] == "two-machines" and not calls  # named, not built
+    assert CASES["two-machines"] is CASES["two-machines"] is TWO_MACHINES and calls == [1]
+    with pytest.raises(ValueError, match="registered twice"):
+        register_case("two-machines")(two_machines)
+    with pytest.raises(KeyError, match="known: smib-inference, smib-identification, wscc9"):
+        CASES["no-such-case"]
+    register_case("misnamed")(lambda: TWO_MACHINES)
+    with pytest.raises(ValueError, match="returned a case named 'two-machines'"):
+        CASES["misnamed"]
+
+
+def test_the_case_registry_imports_none_of_the_builders():
+    """The builders import `systems.cases` to register; it imports nothing of the project."""
+    tree = ast.parse(Path(systems.cases.__file__).read_text())
+    imported = [node.module or "" for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+    imported += [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names]
+    assert not [name for name in imported if name.split(".")[0] in ("systems", "solvers", "harness")]
 
 
 def test_identification_pairs_are_ten_evenly_spaced_in_the_papers_box():
@@ -69,11 +103,11 @@ def test_case_rejects_bad_parameters(field, value):
         dataclasses.replace(case, **{field: value})
 
 
-@pytest.mark.parametrize("field,value", [("g_inf", (True,)), ("b_inf", [np.True_]), ("m", (0.4, True)),
+@pytest.mark.parametrize("field,value", [("g_inf", (True, 0.0)), ("b_inf", [0.0, np.True_]), ("m", (0.4, True)),
                                          ("t_final", True), ("p1_max", np.True_), ("p1_min", "0.1"),
                                          ("m_box", ((0.02, True),)), ("delta0", ["0.1"])])
 def test_case_refuses_booleans_and_strings_inside_its_fields(field, value):
-    case = SMIB_INFERENCE if field != "m" else TWO_MACHINES
+    case = TWO_MACHINES if field in ("m", "g_inf", "b_inf") else SMIB_INFERENCE
     with pytest.raises(ValueError, match=f"^Case.{field} must be"):
         dataclasses.replace(case, **{field: value})
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -117,6 +119,16 @@ def test_registry_is_one_dict_of_adapter_classes():
         if cls is not None:
             assert cls.name == name
             assert "default" in cls.CONFIGS
+
+
+def test_registry_of_built_in_adapters_is_the_entry_point_table_of_pyproject():
+    """One line of pyproject.toml each, read from the source tree (not an install's metadata)."""
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    table = pyproject["project"]["entry-points"]["swingbench.solvers"]
+    assert list(SOLVERS)[:len(table)] == list(table)
+    for name, value in table.items():
+        if SOLVERS[name] is not None:
+            assert f"{SOLVERS[name].__module__}:{SOLVERS[name].__name__}" == value
 
 
 def _linear_closed_form(case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

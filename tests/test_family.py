@@ -8,8 +8,8 @@ import pytest
 from scipy import sparse
 
 from systems import family, grids
-from systems.cases import CASES, FAMILY_CASES
-from systems.family import FAMILY, family_case, family_model, family_size, merge_machines
+from systems.cases import CASES
+from systems.family import FAMILY, FAMILY_CASES, family_case, family_model, family_size, merge_machines
 from systems.network import kron_reduce, kron_reduce_sparse
 from systems.reference import reference
 

@@ -66,7 +66,7 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert (timed.nunique() == 1).all() and timed.first()["latency"] > latency["median_s"].sum()
 
     markdown = write_report(store.rows(), tmp_path, {"threads": 2})
-    assert "casadi-cvodes [default]" in markdown and "Skipped or failed" in markdown
+    assert "casadi-cvodes default" in markdown and "Skipped or failed" in markdown
     assert "Wall time of its units of work, minutes: smib-inference " in markdown
     assert "skipped: nothing not installed" in markdown
     assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()
@@ -142,11 +142,12 @@ def test_cli_run_and_report(tmp_path, capsys):
     assert main(["run", "--quick", "--case", "smib-inference", "--progress", "off", "--solver", "casadi-cvodes", "--config", "default",
                  "--suite", "accuracy", "--out", str(out), "--update-readme", str(readme)]) == 0
     printed = capsys.readouterr().out
-    assert "casadi-cvodes [default]" in printed
+    assert "casadi-cvodes default" in printed
     text = readme.read_text()
     assert text.startswith("intro\n") and text.endswith("end\n") and "old" not in text
-    assert "casadi-cvodes [default]" in text
-    assert "![" not in text  # no work-precision figure in an accuracy run, so no link to one
+    assert "[smib-inference](docs/results/smib-inference.md)" in text  # the verdicts link the case's page
+    page = (tmp_path / "docs" / "results" / "smib-inference.md").read_text()
+    assert "casadi-cvodes default" in page and "![" not in page  # an accuracy run draws no figure
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["threads"] == 2 and "version_numpy" in meta
     (out / "tables.md").unlink()
@@ -214,7 +215,7 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
     assert "25,000" in markdown
     # on the work-precision curve the classical time at 1e-3 is 4 ms * 4^(-2/3) = 1.59 ms: 0.794x
     assert "0.794x" in markdown
-    assert "toy-pinn [default]" in markdown and "scipy-odeint [default]" in markdown
+    assert "toy-pinn default" in markdown and "scipy-odeint default" in markdown
     assert (tmp_path / "work_precision.png").exists() and (tmp_path / "tables.tex").exists()
     assert "![work_precision](work_precision.png)" in (tmp_path / "README.md").read_text()
 
@@ -299,7 +300,7 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
             "config": "tight", "variant": "", "seed": -1, "threads": 2, "status": "ok"}
     write_report([{**base, **row} for row in rows], tmp_path, {}, plots=False)
     markdown = (tmp_path / "tables.md").read_text()
-    inside = sum(r["m_machines_in_ci95"] for r in rows if r["noise"] > 0)
+    inside = sum(r["m_ci95_low"] <= r["m_true"] <= r["m_ci95_high"] for r in rows if r["noise"] > 0)
     assert "m 95% CI coverage" in markdown and f"{inside}/4 ({100 * inside / 4:.0f} %)" in markdown
 
 
@@ -309,7 +310,7 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
 ])
 def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
     from harness.paper import paper_table
-    from harness.report import suite_frames
+    from harness.sections import suite_frames
 
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0, "trains": True}
@@ -331,7 +332,7 @@ def test_fastest_classical_includes_the_tolerance_sweep():
     """The rival of a PINN is the fastest classical option at least as accurate: a named config
     or any point of the work-precision sweep, for the grid and for the single-point query."""
     from harness.analysis import GRID_QUERY, POINT_QUERY, fastest_classical
-    from harness.report import suite_frames
+    from harness.sections import suite_frames
 
     base = {"case": "smib-inference", "threads": 2, "status": "ok", "seed": -1}
     ode = {**base, "solver": "scipy-odeint", "config": "default", "variant": ""}
@@ -361,7 +362,7 @@ def test_fastest_classical_includes_the_tolerance_sweep():
 def test_git_commit_is_dirty_only_for_changes_the_run_did_not_write(tmp_path):
     import subprocess
 
-    from harness.report import git_commit
+    from harness.provenance import git_commit
 
     def git(*args):
         subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=tmp_path, check=True,
@@ -402,7 +403,7 @@ def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
 
 
 def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
-    from solvers.pinn.spec import PinnConfig
+    from solvers.pinn.config import PinnConfig
 
     config = PinnConfig()
     assert config.max_seconds is None and config.deadline(5.0) == float("inf")
@@ -516,7 +517,7 @@ def test_cli_refuses_an_option_a_selected_case_or_this_machine_cannot_take_befor
 
 
 def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
-    from harness.report import work_minutes
+    from harness.sections import work_minutes
 
     unit = {"suite": "latency", "solver": "a", "config": "default", "variant": "", "seed": -1}
     rows = [{**unit, "case": "x", "work_s": 60.0}, {**unit, "case": "x", "work_s": 60.0},  # one unit, two rows

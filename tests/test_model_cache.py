@@ -16,8 +16,9 @@ from harness.model_cache import cache_key, store_cached
 from harness.runner import fit_or_load
 from harness.runs import QUICK
 from solvers import make_solver
-from solvers.pinn import spec
-from solvers.pinn.spec import CorruptModelError
+from solvers.pinn.architecture import Architecture, init_theta
+from solvers.pinn.config import PinnConfig
+from solvers.pinn.model_file import CorruptModelError, load_model, save_model, weights_sha256
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 
 # torch.func's first jvp registers decompositions through torch.jit.script, deprecated in torch 2.13
@@ -92,7 +93,7 @@ def _other_case_recorded(entry: Entry) -> None:
     """The network of another case's data (SMIB_IDENTIFICATION's P1 range, the same shapes) in the
     .json, the .fit.json re-recorded over it: only the model's own check is left."""
     info = json.loads(entry.json.read_text())
-    other = spec.Architecture.of(entry.solver.pinn_config, SMIB_IDENTIFICATION)
+    other = Architecture.of(entry.solver.pinn_config, SMIB_IDENTIFICATION)
     entry.json.write_text(json.dumps({**info, "architecture": other.to_json()}))
     record = json.loads(entry.fit.read_text())
     record["files"][entry.json.name] = model_cache._sha256(entry.json)
@@ -196,11 +197,11 @@ def test_the_key_covers_every_training_option_and_no_query_only_one(monkeypatch)
 @pytest.fixture
 def saved(tmp_path):
     """A model saved by `save_model` (random weights, with an identification): its two paths."""
-    config = spec.PinnConfig(hidden_layers=1, width=4, id_hidden_layers=1, id_width=3)
-    arch, id_arch = spec.Architecture.of(config, CASE), spec.Architecture.of(config, CASE, identification=True)
-    ident = {"m": 0.3, "d": 0.1, "arch": id_arch, "theta": spec.init_theta(id_arch, 1)}
-    return spec.save_model(tmp_path / "model", solver="test", config=config, case=CASE, arch=arch,
-                           theta=spec.init_theta(arch, 0), identification=ident)
+    config = PinnConfig(hidden_layers=1, width=4, id_hidden_layers=1, id_width=3)
+    arch, id_arch = Architecture.of(config, CASE), Architecture.of(config, CASE, identification=True)
+    ident = {"m": 0.3, "d": 0.1, "arch": id_arch, "theta": init_theta(id_arch, 1)}
+    return save_model(tmp_path / "model", solver="test", config=config, case=CASE, arch=arch,
+                           theta=init_theta(arch, 0), identification=ident)
 
 
 def _edit_json(path: Path, **changes) -> None:
@@ -236,7 +237,7 @@ def _nan(npz: Path, meta: Path, version: int) -> None:
     if version == 1:
         _v1(meta)
     else:
-        _edit_json(meta, weights_sha256=spec.weights_sha256(arrays))
+        _edit_json(meta, weights_sha256=weights_sha256(arrays))
 
 
 # damage(npz, meta) and (the file the message starts with, a word it says)
@@ -262,38 +263,38 @@ def test_load_model_refuses_a_bad_file_and_names_it(saved, damage):
     apply, which, word = FILE_DAMAGES[damage]
     apply(*saved)
     with pytest.raises(CorruptModelError) as info:
-        spec.load_model(saved[0].with_suffix(""))
+        load_model(saved[0].with_suffix(""))
     assert str(info.value).startswith(f"{saved[which]}: ") and word in str(info.value)
 
 
 def test_load_model_reads_what_save_model_wrote_and_version_1_files(saved):
     npz, meta = saved
-    first = spec.load_model(npz)
+    first = load_model(npz)
     assert first["case"] == CASE and first["identification"]["m"] == 0.3
-    assert json.loads(meta.read_text())["weights_sha256"] == spec.weights_sha256(_arrays(npz))
+    assert json.loads(meta.read_text())["weights_sha256"] == weights_sha256(_arrays(npz))
     _v1(meta)  # written before the weights' hash
-    np.testing.assert_array_equal(spec.load_model(npz)["theta"], first["theta"])
+    np.testing.assert_array_equal(load_model(npz)["theta"], first["theta"])
     npz.unlink()
     with pytest.raises(FileNotFoundError, match="no such model file") as info:
-        spec.load_model(npz)
+        load_model(npz)
     assert str(info.value).startswith(str(npz))
 
 
 def _save_mismatched(tmp_path: Path, what: str) -> tuple[Path, Path]:
     """A model whose networks are not those of its config for the case it records."""
     three = THREE_MACHINES
-    config = spec.PinnConfig(hidden_layers=1, width=4, id_hidden_layers=1, id_width=3)
-    arch = spec.Architecture.of(config, three)
-    theta, windows, ident = spec.init_theta(arch, 0), None, None
+    config = PinnConfig(hidden_layers=1, width=4, id_hidden_layers=1, id_width=3)
+    arch = Architecture.of(config, three)
+    theta, windows, ident = init_theta(arch, 0), None, None
     if what == "identification":  # a SMIB's identification beside a three-machine network
-        id_arch = spec.Architecture.of(config, CASE, identification=True)
-        ident = {"m": 0.3, "d": 0.1, "arch": id_arch, "theta": spec.init_theta(id_arch, 1)}
+        id_arch = Architecture.of(config, CASE, identification=True)
+        ident = {"m": 0.3, "d": 0.1, "arch": id_arch, "theta": init_theta(id_arch, 1)}
     else:  # windows of 5 s for a network of 2.5 s windows
         config = replace(config, window=2.5)
-        arch = spec.Architecture.of(config, three)
+        arch = Architecture.of(config, three)
         windows = np.array([0.0, 5.0, 10.0])
-        theta = np.stack([spec.init_theta(arch, 0), spec.init_theta(arch, 0, window=1)])
-    return spec.save_model(tmp_path / "model", solver="test", config=config, case=three, arch=arch,
+        theta = np.stack([init_theta(arch, 0), init_theta(arch, 0, window=1)])
+    return save_model(tmp_path / "model", solver="test", config=config, case=three, arch=arch,
                            theta=theta, windows=windows, identification=ident)
 
 
@@ -304,14 +305,14 @@ def _save_mismatched(tmp_path: Path, what: str) -> tuple[Path, Path]:
 def test_load_model_refuses_networks_not_of_the_case_it_records(tmp_path, what, says):
     _, meta = _save_mismatched(tmp_path, what)
     with pytest.raises(CorruptModelError) as info:
-        spec.load_model(meta)
+        load_model(meta)
     assert str(info.value).startswith(f"{meta}: ") and says in str(info.value)
 
 
 def test_save_model_replaces_a_file_whole_or_not_at_all(saved, monkeypatch):
     npz, meta = saved
     before = npz.read_bytes(), meta.read_bytes()
-    loaded = spec.load_model(npz)
+    loaded = load_model(npz)
 
     def fail(file, **arrays):
         file.write(b"PK half a file")
@@ -319,7 +320,7 @@ def test_save_model_replaces_a_file_whole_or_not_at_all(saved, monkeypatch):
 
     monkeypatch.setattr(np, "savez", fail)
     with pytest.raises(OSError, match="disk full"):
-        spec.save_model(npz, solver="test", config=loaded["config"], case=CASE, arch=loaded["arch"],
+        save_model(npz, solver="test", config=loaded["config"], case=CASE, arch=loaded["arch"],
                         theta=loaded["theta"])
     assert (npz.read_bytes(), meta.read_bytes()) == before
     assert sorted(p.name for p in npz.parent.iterdir()) == sorted([npz.name, meta.name])  # no temporary left

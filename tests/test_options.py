@@ -18,7 +18,7 @@ from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import AbstractSolver
 from solvers.classical import ToleranceOptions
 from solvers.options import OptionSchema, PositiveFloat, describe_option, validate_options
-from solvers.pinn.spec import PinnConfig
+from solvers.pinn.config import PinnConfig
 from systems.cases import SMIB_INFERENCE, check_array
 
 CASE = SMIB_INFERENCE

@@ -13,8 +13,20 @@ import pytest
 from harness.metrics import rel_l2
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
-from solvers.pinn import network, spec
-from solvers.pinn.common import MarchingEvaluator, _progress_enabled
+from solvers.pinn import network
+from solvers.pinn.architecture import Architecture, init_theta, start_guess
+from solvers.pinn.common import _progress_enabled
+from solvers.pinn.config import PinnConfig
+from solvers.pinn.evaluator import MarchingEvaluator
+from solvers.pinn.model_file import CorruptModelError, load_model
+from solvers.pinn.problems import (
+    forward_problem,
+    identification_p_range,
+    identification_problem,
+    observations_within,
+    window_edges,
+    window_problem,
+)
 from systems import model
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
 from systems.reference import reference
@@ -132,9 +144,9 @@ def test_swing_residual_of_a_known_function(name, case):
 def test_hard_initial_condition_holds_for_any_weights(name, case):
     ops, array, to_np = _ops(name)
     for outputs in (1, 2):
-        arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=2, width=8, outputs=outputs), case)
+        arch = Architecture.of(PinnConfig(hidden_layers=2, width=8, outputs=outputs), case)
         assert arch.sizes[-1] == outputs * case.n and arch.machines == case.n
-        theta = spec.init_theta(arch, seed=3)
+        theta = init_theta(arch, seed=3)
         with _x64(name):
             delta, omega = network.delta_omega(arch, array(theta), array([[0.0]]),
                                                array([[case.p1_min], [case.p1_max]]), ops)
@@ -144,8 +156,8 @@ def test_hard_initial_condition_holds_for_any_weights(name, case):
 
 
 def test_forward_problem_is_the_papers_data_and_seeded():
-    config = spec.PinnConfig(n_u=40, n_f=500, seed=7)
-    problem = spec.forward_problem(config, CASE)
+    config = PinnConfig(n_u=40, n_f=500, seed=7)
+    problem = forward_problem(config, CASE)
     on_edge = (problem.t_u == 0) | np.isin(problem.p_u, [CASE.p1_min, CASE.p1_max])
     assert problem.t_u.size == 40 and on_edge.all()
     assert problem.targets.shape == (40, 1)
@@ -154,12 +166,12 @@ def test_forward_problem_is_the_papers_data_and_seeded():
     assert problem.t_f.size == 540  # LHS points plus the data points, as in the paper's code
     assert (problem.t_f >= 0).all() and (problem.t_f <= CASE.t_final).all()
     assert (problem.p_f >= CASE.p1_min).all() and (problem.p_f <= CASE.p1_max).all()
-    again = spec.forward_problem(config, CASE)
+    again = forward_problem(config, CASE)
     np.testing.assert_array_equal(again.t_f, problem.t_f)
-    other = spec.forward_problem(spec.PinnConfig(n_u=40, n_f=500, seed=8), CASE)
+    other = forward_problem(PinnConfig(n_u=40, n_f=500, seed=8), CASE)
     assert not np.array_equal(other.t_f, problem.t_f)
-    np.testing.assert_array_equal(spec.init_theta(spec.Architecture.of(config, CASE), 7),
-                                  spec.init_theta(spec.Architecture.of(config, CASE), 7))
+    np.testing.assert_array_equal(init_theta(Architecture.of(config, CASE), 7),
+                                  init_theta(Architecture.of(config, CASE), 7))
 
 
 # ---- the two backends are one specification -----------------------------------------------------
@@ -189,21 +201,21 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification, ca
     from solvers.pinn.jax_pinn import JaxPinn
     from solvers.pinn.torch_pinn import TorchPinn
 
-    config = spec.PinnConfig(n_u=10, n_f=60, id_n_f=40, seed=1, **ARCH_VARIANTS[variant])
+    config = PinnConfig(n_u=10, n_f=60, id_n_f=40, seed=1, **ARCH_VARIANTS[variant])
     n = case.n
     if identification:
         rng = np.random.default_rng(0)
         t, p = rng.uniform(0, case.t_final, 30), rng.uniform(case.p1_min, case.p1_max, 30)
         phase = np.arange(n)
         obs = Observations(t, p, np.sin(t[:, None] + phase) * p[:, None], np.cos(t[:, None] - phase))
-        arch = spec.Architecture.of(config, case, True, spec.identification_p_range(case, obs))
-        problem = spec.identification_problem(config, case, obs)
-        theta = spec.init_theta(arch, config.seed, 0.3, 0.2)
+        arch = Architecture.of(config, case, True, identification_p_range(case, obs))
+        problem = identification_problem(config, case, obs)
+        theta = init_theta(arch, config.seed, 0.3, 0.2)
         assert arch.n_extra == 2 * n and problem.targets.shape == (30, 2 * n)
     else:
-        arch = spec.Architecture.of(config, case)
-        problem = spec.forward_problem(config, case)
-        theta = spec.init_theta(arch, config.seed)
+        arch = Architecture.of(config, case)
+        problem = forward_problem(config, case)
+        theta = init_theta(arch, config.seed)
     solvers = [cls(case, threads=1, **ARCH_VARIANTS[variant]) for cls in (TorchPinn, JaxPinn)]
     trainers = []
     for solver in solvers:
@@ -249,8 +261,8 @@ def test_torch_query_on_the_full_grid_matches_autodiff():
 
     z = torch.linspace(-40.0, 40.0, 2 * _SIGMOID_TANH_MIN + 1, dtype=torch.float64)
     np.testing.assert_allclose(_tanh_(z.clone()).numpy(), torch.tanh(z).numpy(), rtol=0, atol=5e-16)
-    arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=2, width=16), CASE)
-    theta = spec.init_theta(arch, seed=2)
+    arch = Architecture.of(PinnConfig(hidden_layers=2, width=16), CASE)
+    theta = init_theta(arch, seed=2)
     evaluator = _FastForward(arch, torch.float64)
     evaluator.load(theta)
     t, p = standard_grid(CASE)
@@ -371,6 +383,10 @@ def test_short_training_reaches_a_loose_accuracy(name):
     assert rel_l2(traj.omega, ref_omega) < 1e-1
 
 
+def _within(interval, value) -> bool:
+    return bool(interval[0] <= value <= interval[1])
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(BACKENDS))
 def test_identification_recovers_m_and_d(name):
@@ -378,10 +394,13 @@ def test_identification_recovers_m_and_d(name):
     case = SMIB_IDENTIFICATION
     solver = make_solver(name, case, **{**SMALL, "id_width": 10, "id_n_f": 300, "id_max_iterations": 60})
     result = solver.identify(_observations(case, 100))
-    assert result.success and result.iterations > 0
+    assert result.iterations > 0
     assert result.m.shape == result.d.shape == (1,)
     assert result.m[0] == pytest.approx(case.m[0], rel=0.05)
     assert result.d[0] == pytest.approx(case.d[0], rel=0.1)
+    # 60 iterations leave the network's misfit far above the data's: the interval holds the truth
+    # and says how little the misfit pins down (whether it is narrow enough to call a success)
+    assert _within(result.m_ci95[0], case.m[0]) and _within(result.d_ci95[0], case.d[0])
 
 
 def test_identification_uses_omega_observations():
@@ -390,7 +409,7 @@ def test_identification_uses_omega_observations():
         pytest.skip("neither torch nor jax installed")
     obs = _observations(CASE, 30, with_omega=True)
     solver = make_solver(name, CASE, **{**SMALL, "id_max_iterations": 10})  # at 3 no step is taken yet
-    problem = spec.identification_problem(solver.pinn_config, CASE, obs)
+    problem = identification_problem(solver.pinn_config, CASE, obs)
     np.testing.assert_array_equal(problem.targets, np.concatenate([obs.delta, obs.omega], axis=1))
     # the loss sees the omega values: the same run on shifted omega data ends elsewhere
     result = solver.identify(obs)
@@ -438,16 +457,19 @@ def test_paper_configs_run_in_float32(name, config, monkeypatch):
     assert all(x.dtype == np.float32 for x in solver._evaluate(np.array([10.0, 0.0]), np.array([0.13])))
     ident = solver.identify(_observations(CASE, 20))
     assert np.isfinite([ident.m, ident.d]).all() and ident.m[0] > 0 and ident.d[0] > 0
-    assert len(compiled) >= 2 and {dtype for dtype, *_ in compiled} == {"float32"}  # fit, identify
+    # fit and identify train in float32; the identification's interval takes its Jacobian from a
+    # float64 build of the same problem (the last compilation)
+    assert len(compiled) >= 3 and {dtype for dtype, *_ in compiled[:-1]} == {"float32"}
+    assert compiled[-1][0] == "float64" and compiled[-1][1] == compiled[-2][1]
     # what L-BFGS trained on (fit, identify) gives float32 numbers ...
-    for (*_, trainer), theta in [(compiled[0], solver.theta), (compiled[-1], solver.identification["theta"])]:
+    for (*_, trainer), theta in [(compiled[0], solver.theta), (compiled[-2], solver.identification["theta"])]:
         loss, grad = trainer.loss_and_grad(theta)
         assert float(np.float32(loss)) == loss
         np.testing.assert_array_equal(grad, grad.astype(np.float32))
     if name != "torch-pinn":  # the float64 build costs JAX another compilation; torch shows the contrast
         return
     # ... where the float64 build of the same problem does not, and agrees to float32 accuracy
-    loss64, grad64 = real_compile(*compiled[-1][1], "float64").loss_and_grad(solver.identification["theta"])
+    loss64, grad64 = compiled[-1][2].loss_and_grad(solver.identification["theta"])
     assert not np.array_equal(grad64, grad64.astype(np.float32))
     assert loss == pytest.approx(loss64, rel=1e-4)
     np.testing.assert_allclose(grad, grad64, rtol=0, atol=1e-3 * np.abs(grad64).max())
@@ -561,11 +583,11 @@ def test_torch_trains_on_the_device_it_is_given():
         make_solver("torch-pinn", CASE, device="tpu")
     with pytest.raises(ValueError, match="device"):
         make_solver("jax-pinn", CASE, device="cuda")  # the JAX backend trains where JAX computes
-    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
-    if not torch.cuda.is_available():
-        with pytest.raises(ValueError, match="device='cuda': torch .* finds no CUDA device"):
-            gpu.fit()
+    if not torch.cuda.is_available():  # refused when the adapter is built, before a run measures
+        with pytest.raises(ValueError, match="option device must be 'cpu' on this machine .* no CUDA device"):
+            make_solver("torch-pinn", CASE, **SMALL, device="cuda")
         return
+    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
     report = gpu.fit()  # on a GPU machine: the same network to float64 rounding, recorded
     assert "trained on" in report.message
     np.testing.assert_allclose(gpu.theta, solver.theta, rtol=1e-6, atol=1e-9)
@@ -613,38 +635,38 @@ def test_two_machine_fit_and_identify_shapes():
 
 def test_identification_starts_at_the_centre_of_each_box():
     """m_init / d_init None: the geometric centre of each machine's box; a number: every machine."""
-    m, d = spec.start_guess(spec.PinnConfig(), TWO)
+    m, d = start_guess(PinnConfig(), TWO)
     np.testing.assert_allclose(m, [0.1, 0.2], rtol=1e-15)
     np.testing.assert_allclose(d, [0.05, 0.1], rtol=1e-15)
-    m, d = spec.start_guess(spec.PinnConfig(m_init=0.3), TWO)
+    m, d = start_guess(PinnConfig(m_init=0.3), TWO)
     np.testing.assert_array_equal(m, [0.3, 0.3])
-    arch = spec.Architecture.of(spec.PinnConfig(hidden_layers=1, width=3), TWO, identification=True)
-    np.testing.assert_allclose(np.exp(spec.init_theta(arch, 0, m, d)[-4:]), [0.3, 0.3, 0.05, 0.1], rtol=1e-15)
+    arch = Architecture.of(PinnConfig(hidden_layers=1, width=3), TWO, identification=True)
+    np.testing.assert_allclose(np.exp(init_theta(arch, 0, m, d)[-4:]), [0.3, 0.3, 0.05, 0.1], rtol=1e-15)
     # the SMIB boxes (0.02, 2) and (0.005, 1): m starts where the old default m_init did
-    assert spec.start_guess(spec.PinnConfig(), CASE)[0][0] == pytest.approx(0.2, rel=1e-15)
+    assert start_guess(PinnConfig(), CASE)[0][0] == pytest.approx(0.2, rel=1e-15)
 
 
 def test_identification_horizon_keeps_the_early_observations_and_collocates_within_it():
     obs = Observations(np.array([0.5, 1.5, 3.0]), np.full(3, 0.3), np.zeros((3, 2)))
-    config = spec.PinnConfig(id_t_max=2.0, id_n_f=40)
-    kept = spec.observations_within(config, obs)
+    config = PinnConfig(id_t_max=2.0, id_n_f=40)
+    kept = observations_within(config, obs)
     assert kept.t.tolist() == [0.5, 1.5] and kept.delta.shape == (2, 2)
-    assert spec.observations_within(spec.PinnConfig(), obs) is obs
-    problem = spec.identification_problem(config, TWO, obs)
+    assert observations_within(PinnConfig(), obs) is obs
+    problem = identification_problem(config, TWO, obs)
     assert problem.targets.shape == (2, 2) and problem.t_f.max() <= 2.0 and problem.t_f.size == 42
-    assert spec.Architecture.of(config, TWO, identification=True).t_hi == 2.0
-    assert spec.Architecture.of(spec.PinnConfig(), TWO, identification=True).t_hi == TWO.t_final
+    assert Architecture.of(config, TWO, identification=True).t_hi == 2.0
+    assert Architecture.of(PinnConfig(), TWO, identification=True).t_hi == TWO.t_final
     with pytest.raises(ValueError, match="id_t_max=0.1 s: no observation"):
-        spec.observations_within(spec.PinnConfig(id_t_max=0.1), obs)
+        observations_within(PinnConfig(id_t_max=0.1), obs)
 
 
 def test_window_edges_and_training_points():
-    np.testing.assert_array_equal(spec.window_edges(4.2, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0, 4.2])
-    np.testing.assert_array_equal(spec.window_edges(4.0 + 1e-12, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0 + 1e-12])
-    assert spec.window_edges(10.0, 0.5).size == 21 and spec.window_edges(1.0, 5.0).tolist() == [0.0, 1.0]
-    config = spec.PinnConfig(n_u=6, n_f=50, window=1.0)
-    edges = spec.window_edges(TWO.t_final, 1.0)
-    problem = spec.window_problem(config, TWO, edges, 2)
+    np.testing.assert_array_equal(window_edges(4.2, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0, 4.2])
+    np.testing.assert_array_equal(window_edges(4.0 + 1e-12, 1.0), [0.0, 1.0, 2.0, 3.0, 4.0 + 1e-12])
+    assert window_edges(10.0, 0.5).size == 21 and window_edges(1.0, 5.0).tolist() == [0.0, 1.0]
+    config = PinnConfig(n_u=6, n_f=50, window=1.0)
+    edges = window_edges(TWO.t_final, 1.0)
+    problem = window_problem(config, TWO, edges, 2)
     assert problem.t_f.size == 56 and problem.targets.shape == (6, 2)
     assert (problem.t_f >= 0).all() and (problem.t_f <= 1.0).all()  # times since the window's start
     assert (problem.p_f >= TWO.p1_min).all() and (problem.p_f <= TWO.p1_max).all()
@@ -652,9 +674,9 @@ def test_window_edges_and_training_points():
     ref, _ = reference(TWO, 2.0 + problem.t_u, [TWO.p1_min, TWO.p1_max])
     np.testing.assert_allclose(problem.targets, np.where((problem.p_u == TWO.p1_max)[:, None], ref[1], ref[0]),
                                rtol=0, atol=1e-12)
-    other = spec.window_problem(config, TWO, edges, 3)
+    other = window_problem(config, TWO, edges, 3)
     assert not np.array_equal(other.t_f, problem.t_f)
-    np.testing.assert_array_equal(spec.window_problem(config, TWO, edges, 2).t_f, problem.t_f)
+    np.testing.assert_array_equal(window_problem(config, TWO, edges, 2).t_f, problem.t_f)
 
 
 def test_marching_model_shapes(marched):
@@ -689,7 +711,7 @@ def test_marching_is_continuous_at_the_window_boundaries(marched):
 def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatch):
     """A repeated single-point query looks the window starts up instead of walking the windows, and
     gives what a grid query gives; the cache holds at most `cache_size` P1 values."""
-    from solvers.pinn import common
+    from solvers.pinn import evaluator as evaluators
 
     solver, _ = marched
     evaluator = solver._evaluate
@@ -697,8 +719,8 @@ def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatc
     t, P1 = np.array([0.0, 0.7, 1.0, 2.5, 3.99, 4.0]), np.array([0.27, 0.33])
     grid = solver.solve(t, P1)
     walks = []
-    real = common.walk
-    monkeypatch.setattr(common, "walk", lambda *args: walks.append(args[3].size) or real(*args))
+    real = evaluators.walk
+    monkeypatch.setattr(evaluators, "walk", lambda *args: walks.append(args[3].size) or real(*args))
     for i in range(P1.size):
         for j in range(t.size):
             one = solver.solve(t[j:j + 1], P1[i:i + 1])
@@ -719,8 +741,6 @@ def test_marching_single_point_queries_use_the_cached_starts(marched, monkeypatc
 def test_marching_save_load_round_trip(marched, target, tmp_path):
     """All windows in one model file (format version 3, the window edges in the .json): loaded by
     either backend they answer the same; the sha256 covers every window."""
-    from solvers.pinn.spec import CorruptModelError
-
     _need(target)
     solver, _ = marched
     npz, meta = solver.save(tmp_path / "model")
@@ -739,4 +759,4 @@ def test_marching_save_load_round_trip(marched, target, tmp_path):
     with open(npz, "wb") as fh:
         np.savez(fh, theta=theta)
     with pytest.raises(CorruptModelError, match="sha256"):
-        spec.load_model(tmp_path / "model")
+        load_model(tmp_path / "model")

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from solvers import make_solver
-from solvers.pinn import spec
-from solvers.pinn.common import MarchingEvaluator
+from solvers.pinn.architecture import Architecture, init_theta
+from solvers.pinn.config import PinnConfig
+from solvers.pinn.evaluator import MarchingEvaluator
 from systems.cases import SMIB_INFERENCE, Case
 
 pytest.importorskip("numba")
@@ -39,9 +40,9 @@ SMALL = {"hidden_layers": 2, "width": 8, "n_u": 20, "n_f": 150, "max_iterations"
 
 def _network(hidden_layers, width, outputs, hard_ic, seed=1):
     """An architecture of the case and random weights (Glorot plus noise in the zero biases)."""
-    config = spec.PinnConfig(hidden_layers=hidden_layers, width=width, outputs=outputs, hard_ic=hard_ic)
-    arch = spec.Architecture.of(config, CASE)
-    theta = spec.init_theta(arch, seed) + 0.2 * np.random.default_rng(seed).normal(size=arch.n_params)
+    config = PinnConfig(hidden_layers=hidden_layers, width=width, outputs=outputs, hard_ic=hard_ic)
+    arch = Architecture.of(config, CASE)
+    theta = init_theta(arch, seed) + 0.2 * np.random.default_rng(seed).normal(size=arch.n_params)
     return arch, theta
 
 
@@ -156,7 +157,7 @@ def test_bad_query_raises(bad):
 
 
 def test_identification_networks_are_refused():
-    arch = spec.Architecture.of(spec.PinnConfig(), CASE, identification=True)
+    arch = Architecture.of(PinnConfig(), CASE, identification=True)
     with pytest.raises(ValueError, match="identification"):
         NumbaEvaluator(arch)
     with pytest.raises(ValueError, match="theta"):
@@ -185,9 +186,9 @@ def test_two_machines_and_start_states_equal_the_framework(outputs, hard_ic):
     """Two machines (n or 2n outputs): the grid, the points, and the time-marching calls with each
     P1's or point's own start state equal torch's float64 evaluator to 1e-12."""
     pytest.importorskip("torch")
-    config = spec.PinnConfig(hidden_layers=2, width=7, outputs=outputs, hard_ic=hard_ic)
-    arch = spec.Architecture.of(config, TWO)
-    theta = spec.init_theta(arch, 4) + 0.2 * np.random.default_rng(4).normal(size=arch.n_params)
+    config = PinnConfig(hidden_layers=2, width=7, outputs=outputs, hard_ic=hard_ic)
+    arch = Architecture.of(config, TWO)
+    theta = init_theta(arch, 4) + 0.2 * np.random.default_rng(4).normal(size=arch.n_params)
     ours = NumbaEvaluator(arch)
     ours.load(theta)
     reference = make_solver("torch-pinn", TWO, threads=1)._make_evaluator(arch, "float64")

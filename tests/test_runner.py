@@ -197,6 +197,27 @@ def test_an_unusable_out_is_one_line(tmp_path, counting):
             main([*argv, "--out", str(locked)])
 
 
+def test_an_out_inside_a_folder_that_cannot_be_entered_is_one_line(tmp_path, counting, monkeypatch, capsys):
+    """As a user without search permission on the parent finds it (root enters any folder, so the
+    test makes stat refuse): exit 2 and one line, no PermissionError traceback."""
+    import pathlib
+
+    out = tmp_path / "closed" / "out"
+    real_stat = pathlib.Path.stat
+
+    def stat(self, *args, **kwargs):
+        if str(self).startswith(str(tmp_path / "closed")):
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_stat(self, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "stat", stat)
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--out", str(out)])
+    assert info.value.code == 2 and str(info.value) == (
+        f"swingbench run: cannot write to --out {out}: Permission denied")
+
+
 def test_report_skips_bad_lines_with_a_warning_and_survives_bad_metadata(tmp_path, counting, capsys):
     store = RowStore(tmp_path)
     _run(store)
@@ -283,3 +304,12 @@ def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsy
     assert main(argv) == 0
     assert "failed" not in capsys.readouterr().err
     assert {r["status"] for r in RowStore(tmp_path).rows()} == {"ok", "skipped: not measured in this test"}
+
+
+def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_all():
+    from harness.cli import _suite_names
+    from harness.suites import DEFAULT_SUITES
+
+    assert list(SUITES) == _suite_names() == ["accuracy", "identification", "latency", "scaling", "work_precision"]
+    assert all(SUITES[name].run.__module__ == f"harness.suites.{name}" for name in SUITES)
+    assert DEFAULT_SUITES == ("accuracy", "identification", "latency", "work_precision")  # scaling runs alone

@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
-from harness.report import suite_frames
-from harness.scaling_tables import break_even_by_n, exponents, log_log_slope, scaling_frame
+from harness.scaling_tables import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
+from harness.sections import suite_frames
 from harness.store import RowStore
 
 TINY = ["--suite", "scaling", "--case", "smib-inference", "wscc9", "--solver", "scipy-odeint", "--config", "default",
@@ -117,6 +117,27 @@ def test_exponents_recover_a_power_law():
     frame = _frame([{"N": int(k), "solver": "ode", "fit_s": 0.0, "grid_s": 1e-3 * k**2, "rel_l2": 1e-6} for k in n])
     (row,) = exponents(frame).to_dict("records")
     assert row["grid query exponent"] == "2.00 (4 N)" and row["N range"] == "3-1000"
+
+
+def test_the_slope_over_the_largest_n_shows_the_growth_the_global_fit_hides():
+    """Overhead at small N, N^2 at scale: the global fit reads ~1, the last three sizes 2."""
+    n = np.array([3, 10, 39, 54, 118, 510, 1445])
+    frame = _frame([{"N": int(k), "solver": "ode", "fit_s": 0.0, "grid_s": 1e-3 + 1e-7 * k**2, "rel_l2": 1e-6}
+                    for k in n])
+    (row,) = exponents(frame).to_dict("records")
+    large = row["grid query exponent, largest 3 N"]
+    assert large.endswith("(N 118-1445)") and 1.7 < float(large.split()[0]) < 2.0
+    assert float(row["grid query exponent"].split()[0]) < 1.0
+
+
+def test_cost_per_simulated_second_of_one_trajectory():
+    frame = _frame([{"N": 3, "solver": "ode", "fit_s": 0.0, "grid_s": 0.8, "rel_l2": 1e-6}])
+    assert frame["per_sim_s"].iloc[0] == pytest.approx(0.8 / 4 / 10.0)  # 4 trajectories, 10 s (no horizon_s)
+    rows = suite_frames([{"suite": "scaling", "case": "n3", "solver": "ode", "config": "default", "variant": "",
+                          "seed": -1, "status": "ok", "machines": 3, "grid_median_s": 0.8,
+                          "point_median_s": 0.1, "rel_l2": 1e-6, "n_trajectories": 4, "horizon_s": 20.0}])
+    assert scaling_frame(rows)["per_sim_s"].iloc[0] == pytest.approx(0.8 / 4 / 20.0)
+    assert "s per simulated s (one trajectory)" in scaling_table(frame)
 
 
 def test_break_even_against_the_fastest_classical_at_least_as_accurate():

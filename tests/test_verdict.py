@@ -17,7 +17,8 @@ from harness.analysis import (
     crossover_t1,
     ladder,
 )
-from harness.report import suite_frames, write_report
+from harness.report import write_report
+from harness.sections import suite_frames
 from harness.verdict import crossover, ladder_table, verdict_lines
 
 BASE = {"case": "smib-inference", "threads": 2, "status": "ok"}

@@ -7,6 +7,7 @@ import numpy as np
 from harness import metrics
 from harness.analysis import COI_DELTA
 from harness.runs import Settings
+from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
@@ -75,3 +76,6 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
         pred = traj.delta if np.allclose(t_seed, t) and np.allclose(p1_seed, P1) else solver.solve(t_seed, p1_seed).delta
         rows.append(_errors("delta", "paper ode45 data", "rad", pred, delta_seed))
     return rows
+
+
+SUITE = Suite("accuracy", accuracy, every_seed=True)

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from harness.runs import Settings
+from harness.suites._base import Suite
 from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
@@ -80,3 +81,6 @@ def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
         timed.setdefault(kind, []).append((n, timing.median_s))  # single points: by t1, the last the largest
         rows.append({**base, **timing._asdict(), "per_query_s": timing.median_s / n})
     return rows
+
+
+SUITE = Suite("latency", latency, interface=True)

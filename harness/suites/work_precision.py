@@ -8,6 +8,7 @@ from dataclasses import replace
 from harness import metrics
 from harness.analysis import t1_column
 from harness.runs import Settings
+from harness.suites._base import Suite
 from harness.suites.latency import T1_S, queries
 from harness.timing import time_call
 from solvers.base import AbstractSolver
@@ -68,3 +69,6 @@ def work_precision(solver: AbstractSolver, case: Case, settings: Settings) -> li
         tuned.fit()
         rows.append({**overrides, "setting": setting_label(overrides), **_point(tuned, case, settings)})
     return rows
+
+
+SUITE = Suite("work_precision", work_precision, sweeps=True)

@@ -4,7 +4,7 @@ A backend subclass provides three hooks: `_prepare_backend` (threads, precision)
 `_compile` (the training functions of one problem as numpy-in, numpy-out callables) and
 `_make_evaluator` (the fast, warm query function of one network architecture). Everything else is
 here, once: time-marching (`PinnConfig.window`) trains and queries its windows through the same
-hooks (`MarchingEvaluator`).
+hooks (`solvers.pinn.evaluator.MarchingEvaluator`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import dataclasses
 import os
 import sys
 import time
-from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
@@ -24,156 +23,24 @@ import numpy as np
 from solvers.base import ABLATION, IDENTIFIES_NETWORKS, AbstractSolver, FitReport, NotFittedError
 from solvers.identification import Estimate, linearised_covariance
 from solvers.options import PositiveInt, StrictBool
-from solvers.pinn import spec
+from solvers.pinn.architecture import Architecture, init_theta, start_guess
+from solvers.pinn.config import CONFIGS, PinnConfig, PinnConfigSchema
+from solvers.pinn.evaluator import Evaluator, MarchingEvaluator, walk
+from solvers.pinn.model_file import load_model, save_model
 from solvers.pinn.network import Physics
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
-from solvers.pinn.spec import Architecture, PinnConfig, PinnConfigSchema, Problem
+from solvers.pinn.problems import (
+    Problem,
+    forward_problem,
+    identification_p_range,
+    identification_problem,
+    observations_within,
+    window_edges,
+    window_problem,
+)
 from systems.cases import NETWORK, SMIB, Observations
 
-__all__ = ["Evaluator", "MarchingEvaluator", "PinnSolver", "Trainer"]
-
-
-class Evaluator(abc.ABC):
-    """The warm query function of one network architecture: compiled (and warmed up) when made,
-    so that `load(theta)` after training costs no compilation.
-
-    `load` / `__call__` / `points` serve one network (the fast path of a query); `prepare` / `grid`
-    / `pairs` evaluate any prepared parameters with each P1's or point's own start state (the
-    windows of a time-marching model, see `MarchingEvaluator`)."""
-
-    @abc.abstractmethod
-    def load(self, theta: np.ndarray) -> None:
-        """Use the flat float64 parameters `theta` from now on."""
-
-    @abc.abstractmethod
-    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """delta (rad) and omega (rad/s), each (len(P1), len(t), n), for t (s) and P1 (p.u.), 1-D
-        float64 numpy; float64 or float32 numpy out (the network's dtype)."""
-
-    @abc.abstractmethod
-    def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """delta (rad) and omega (rad/s) at the pairs (t[i] s, P1[i] p.u.), each (n_s, n), one
-        vectorised evaluation; dtypes as `__call__`."""
-
-    @abc.abstractmethod
-    def prepare(self, theta: np.ndarray) -> Any:
-        """The flat float64 parameters `theta` in the form `grid` and `pairs` take."""
-
-    @abc.abstractmethod
-    def grid(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
-        """As `__call__` for the `prepare`d `params`, with P1[i]'s start state start[i] (len(P1),
-        2, n) float64 (rows delta rad, omega rad/s) in place of the architecture's initial
-        condition."""
-
-    @abc.abstractmethod
-    def pairs(self, params: Any, t: np.ndarray, P1: np.ndarray, start: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray]:
-        """As `points` for the `prepare`d `params`, with point i's start state start[i] (n_s, 2, n)."""
-
-
-class MarchingEvaluator(Evaluator):
-    """delta (rad) and omega (rad/s) of a time-marching model: one network per window
-    [edges[w], edges[w + 1]] s, each evaluated by `inner` (an `Evaluator` of the window
-    architecture, any backend or the compiled one) at the time since its window's start.
-
-    Window w's initial condition at P1 is the state window w - 1 reaches at t_w for that P1, so a
-    point needs every earlier window at its P1. Those start states are kept per P1 value in an LRU
-    cache (`cache_size` P1 values, each (W, 2, n) float64): a grid query computes the P1 values it
-    has not seen once (W batched network calls, n_p points each); a repeated single-point query
-    looks them up. A time t belongs to the window with edges[w] <= t < edges[w + 1] (a window's
-    start to itself, where phi = 0 and its state is exactly the start state); t beyond the last
-    edge (extrapolation) to the last window."""
-
-    def __init__(self, inner: Evaluator, arch: Architecture, edges: np.ndarray, cache_size: int = 4096) -> None:
-        self.inner, self.arch = inner, arch
-        self.edges = np.asarray(edges, np.float64)
-        self.lengths = np.diff(self.edges)
-        self.cache_size = int(cache_size)
-        self._inner_edges = self.edges[1:-1]
-        self._start0 = np.array([arch.delta0, arch.omega0], np.float64)  # (2, n)
-        self.params: list[Any] = []
-        self._cache: OrderedDict[float, np.ndarray] = OrderedDict()
-
-    def load(self, theta: np.ndarray) -> None:
-        """Use the windows' parameters `theta` (W, n_params) float64 from now on."""
-        theta = np.asarray(theta, np.float64)
-        if theta.shape != (self.lengths.size, self.arch.n_params):
-            raise ValueError(f"theta has shape {theta.shape}, {self.lengths.size} windows of this "
-                             f"architecture need ({self.lengths.size}, {self.arch.n_params})")
-        self.params = [self.inner.prepare(row) for row in theta]
-        self._cache.clear()
-
-    def starts(self, P1: np.ndarray) -> np.ndarray:
-        """Every window's start state for each P1: (len(P1), W, 2, n) float64, from the cache or
-        computed (for the P1 values not in it, together) and cached."""
-        keys = P1.tolist()
-        cache = self._cache
-        if len(keys) == 1 and keys[0] in cache:  # the single-point query's path
-            cache.move_to_end(keys[0])
-            return cache[keys[0]][None]
-        missing = [key for key in dict.fromkeys(keys) if key not in cache]
-        if missing:
-            walked = walk(self.inner, self.params, self.lengths, np.array(missing, np.float64), self._start0)
-            for key, row in zip(missing, walked):
-                cache[key] = row
-        out = np.stack([cache[key] for key in keys])
-        for key in dict.fromkeys(keys):
-            cache.move_to_end(key)
-        while len(cache) > self.cache_size:
-            cache.popitem(last=False)
-        return out
-
-    def window_of(self, t: np.ndarray) -> np.ndarray:
-        """The window index of each time t (s)."""
-        return np.searchsorted(self._inner_edges, t, side="right")
-
-    def __call__(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        starts = self.starts(P1)
-        which = self.window_of(t)
-        if t.size == 1:  # one window: no scatter
-            w = int(which[0])
-            return self.inner.grid(self.params[w], t - self.edges[w], P1, starts[:, w])
-        delta = np.empty((P1.size, t.size, self.arch.machines))
-        omega = np.empty_like(delta)
-        for w in np.unique(which).tolist():
-            idx = np.flatnonzero(which == w)
-            d, o = self.inner.grid(self.params[w], t[idx] - self.edges[w], P1, starts[:, w])
-            delta[:, idx], omega[:, idx] = d, o
-        return delta, omega
-
-    def points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        starts = self.starts(P1)
-        which = self.window_of(t)
-        delta = np.empty((t.size, self.arch.machines))
-        omega = np.empty_like(delta)
-        for w in np.unique(which).tolist():
-            idx = np.flatnonzero(which == w)
-            d, o = self.inner.pairs(self.params[w], t[idx] - self.edges[w], P1[idx], starts[idx, w])
-            delta[idx], omega[idx] = d, o
-        return delta, omega
-
-    def prepare(self, theta: np.ndarray) -> Any:
-        raise TypeError("a time-marching model is not a window: use load()")
-
-    def grid(self, params, t, P1, start):
-        raise TypeError("a time-marching model is not a window: use __call__()")
-
-    def pairs(self, params, t, P1, start):
-        raise TypeError("a time-marching model is not a window: use points()")
-
-
-def walk(inner: Evaluator, params: list[Any], lengths: np.ndarray, P1: np.ndarray, start0: np.ndarray
-         ) -> np.ndarray:
-    """The start states (len(P1), len(params) + 1, 2, n) float64 of windows 0..len(params) for each
-    P1: window 0 starts at `start0` (2, n) (the case's initial state), window w + 1 at the end of
-    window w (its network `params[w]` at the window's length `lengths[w]` s from its start state)."""
-    out = np.empty((P1.size, len(params) + 1) + start0.shape)
-    out[:, 0] = start0
-    for w, prepared in enumerate(params):
-        delta, omega = inner.pairs(prepared, np.full(P1.size, lengths[w]), P1, out[:, w])
-        out[:, w + 1, 0], out[:, w + 1, 1] = delta, omega
-    return out
+__all__ = ["PinnSolver", "Trainer"]
 
 
 @dataclass(frozen=True)
@@ -209,7 +76,7 @@ class PinnSolver(AbstractSolver):
 
     `fit()` trains on the paper's data (initial and boundary points whose delta comes from the tight
     reference `systems.reference.reference`, where the paper used MATLAB ode45) plus the physics
-    residual on collocation points (see `spec.PinnConfig` and `spec.forward_problem`); `solve`
+    residual on collocation points (see `PinnConfig` and `forward_problem`); `solve`
     evaluates delta (rad) and omega = d delta/dt (rad/s, forward-mode autodiff of the same network,
     or the second output of a two-output network) on the trained domain; `identify` trains a
     network with m = exp(log m), d = exp(log d) as extra parameters on the observations and the
@@ -242,9 +109,9 @@ class PinnSolver(AbstractSolver):
     VARIANTS: ClassVar[tuple[dict[str, Any], ...]] = ({"query": "numba"},)
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads", "progress", "query"})
     SCHEMA = PinnOptions
-    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = spec.CONFIGS
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = CONFIGS
     # One network learns the SMIB's swing; a multi-machine case's lightly damped 1-2 Hz swings need
-    # time-marching windows (`spec.CONFIGS`), which the SMIB does not.
+    # time-marching windows (`solvers.pinn.config.CONFIGS`), which the SMIB does not.
     CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {
         "default": frozenset({SMIB}), "paper": frozenset({SMIB}), "paper-two-outputs": frozenset({SMIB}),
         "two-outputs": frozenset({SMIB}), "marching": frozenset({NETWORK})}
@@ -323,8 +190,8 @@ class PinnSolver(AbstractSolver):
         arch = Architecture.of(config, self.case)
         if config.window is not None:
             return self._fit_marching(arch, deadline, note)
-        problem = spec.forward_problem(config, self.case)
-        theta0 = spec.init_theta(arch, config.seed)
+        problem = forward_problem(config, self.case)
+        theta0 = init_theta(arch, config.seed)
         evaluator = self._query_evaluator(arch)  # compiled within the time budget
         result = self._train(arch, problem, theta0, config.max_iterations, deadline, "fit")
         self._set_model(arch, result.theta, evaluator)
@@ -337,7 +204,7 @@ class PinnSolver(AbstractSolver):
         training, from the framework's evaluator whatever `query` says, so that training does not
         depend on it); each window has `max_iterations` and an equal share of the time left."""
         config = self.pinn_config
-        edges = spec.window_edges(self.case.t_final, config.window)
+        edges = window_edges(self.case.t_final, config.window)
         lengths = np.diff(edges)
         start0 = np.array([arch.delta0, arch.omega0], np.float64)
         evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
@@ -346,7 +213,7 @@ class PinnSolver(AbstractSolver):
         prepared: list[Any] = []
         iterations, losses, messages = 0, [], []
         for w in range(lengths.size):
-            problem = spec.window_problem(config, self.case, edges, w)
+            problem = window_problem(config, self.case, edges, w)
             problem = dataclasses.replace(
                 problem,
                 start_u=walk(walker, prepared, lengths, problem.p_u, start0)[:, -1] if problem.t_u.size else None,
@@ -357,7 +224,7 @@ class PinnSolver(AbstractSolver):
             trainer = self._compile(arch, problem, self.physics, config.dtype)
             now = time.perf_counter()
             window_deadline = now + (deadline - now) / (lengths.size - w)  # an equal share of what is left
-            theta0 = spec.init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
+            theta0 = init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
             result = self._train(arch, problem, theta0, config.max_iterations, window_deadline,
                                  f"fit window {w + 1}/{lengths.size}", trainer)
             thetas.append(result.theta)
@@ -385,6 +252,7 @@ class PinnSolver(AbstractSolver):
         """The evaluator the `query` option names, compiled and warmed up; for a time-marching model
         (window `edges` s) the `MarchingEvaluator` over it."""
         if self.options["query"] == "numba":
+            # numba is an optional dependency: a PINN queried through its framework works without it
             from solvers.pinn.compiled import NumbaEvaluator
 
             inner = NumbaEvaluator(arch, threads=self.options["threads"])
@@ -400,7 +268,7 @@ class PinnSolver(AbstractSolver):
 
     def _identify(self, obs: Observations) -> Estimate:
         """Train a network with log m_1..n, log d_1..n as its last 2n parameters (LM or L-BFGS, as
-        configured), from `spec.start_guess` (one network over the whole horizon, also in
+        configured), from `start_guess` (one network over the whole horizon, also in
         time-marching configurations).
 
         Uncertainty: the linearised covariance (2n x 2n) of (log m_1..n, log d_1..n) over every
@@ -412,11 +280,11 @@ class PinnSolver(AbstractSolver):
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
         n = self.case.n
-        obs = spec.observations_within(config, obs)
+        obs = observations_within(config, obs)
         arch = Architecture.of(config, self.case, identification=True,
-                               p_range=spec.identification_p_range(self.case, obs))
-        problem = spec.identification_problem(config, self.case, obs)
-        theta0 = spec.init_theta(arch, config.seed, *spec.start_guess(config, self.case))
+                               p_range=identification_p_range(self.case, obs))
+        problem = identification_problem(config, self.case, obs)
+        theta0 = init_theta(arch, config.seed, *start_guess(config, self.case))
         trainer = self._compile(arch, problem, self.physics, config.dtype)
         result = self._train(arch, problem, theta0, config.id_max_iterations, deadline, "identify", trainer)
         m, d = np.exp(result.theta[-2 * n:-n]), np.exp(result.theta[-n:])
@@ -425,8 +293,11 @@ class PinnSolver(AbstractSolver):
         message = result.message + (f"; {note}" if note else "")
         if not success:
             return Estimate(m, d, result.iterations, False, message)
+        # the Jacobian in float64 also for a float32 network (torch's nested forward mode, which
+        # float32 training never uses, mixes the two precisions)
+        exact = trainer if config.dtype == "float64" else self._compile(arch, problem, self.physics, "float64")
         cov, dof, condition = linearised_covariance(
-            trainer.jacobian(result.theta), trainer.residuals(result.theta), problem.targets.size, 2 * n,
+            exact.jacobian(result.theta), exact.residuals(result.theta), problem.targets.size, 2 * n,
             rcond=100 * float(np.finfo(config.dtype).eps))
         return Estimate(m, d, result.iterations, True, message, cov, dof, condition)
 
@@ -438,17 +309,17 @@ class PinnSolver(AbstractSolver):
         Loadable by either backend."""
         if not self.fitted:
             raise NotFittedError(f"{self.name}: nothing to save before fit() (or load())")
-        return spec.save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
-                               arch=self.arch, theta=self.theta, windows=self.windows,
-                               identification=getattr(self, "identification", None))
+        return save_model(path, solver=self.name, config=self.pinn_config, case=self.case,
+                          arch=self.arch, theta=self.theta, windows=self.windows,
+                          identification=getattr(self, "identification", None))
 
     def load(self, path) -> PinnSolver:
         """Load what either backend saved at `path` (its config replaces this solver's config
         fields; threads, progress and query stay) and return this solver, fitted. A ValueError
         naming the file when the model is not of this solver's case: its case record differs, or
-        (`spec.load_model`, `spec.check_model_case`) its networks are not those of its config for
+        (`load_model`, `check_model_case`) its networks are not those of its config for
         the case it records (machines, initial state, P1 and t ranges, window edges)."""
-        saved = spec.load_model(path)
+        saved = load_model(path)
         if saved["case"] != self.case:
             differ = [f.name for f in dataclasses.fields(self.case)
                       if getattr(saved["case"], f.name) != getattr(self.case, f.name)]

@@ -1,6 +1,6 @@
 """A compiled (numba) query of a trained PINN: delta and omega without torch or JAX.
 
-The forward pass of any `spec.Architecture` network (any layer sizes, n machines, one or two
+The forward pass of any `Architecture` network (any layer sizes, n machines, one or two
 outputs per machine, with or without the hard initial condition, from the architecture's initial
 state or each P1's own: the windows of a time-marching model), computed in float64 from the flat float64 parameter vector,
 exactly as `network.delta_omega`: inputs normalised to [-1, 1], tanh hidden layers, a linear output
@@ -29,8 +29,9 @@ import math
 import numba
 import numpy as np
 
-from solvers.pinn.common import Evaluator, MarchingEvaluator
-from solvers.pinn.spec import Architecture, load_model
+from solvers.pinn.architecture import Architecture
+from solvers.pinn.evaluator import Evaluator, MarchingEvaluator
+from solvers.pinn.model_file import load_model
 
 __all__ = ["NumbaEvaluator", "compiled_model"]
 
@@ -285,7 +286,7 @@ class NumbaEvaluator(Evaluator):
     """delta (rad) and omega (rad/s), each (len(P1), len(t), n) float64, of networks `arch` (not the
     identification architectures), computed in float64 by numba; compiled and warmed up when made.
     `grid` / `pairs` take each P1's or point's start state (time-marching windows), so a
-    `common.MarchingEvaluator` over this one is the compiled query of a time-marching model.
+    `evaluator.MarchingEvaluator` over this one is the compiled query of a time-marching model.
 
     `threads` > 1: queries of at least `_PARALLEL_MIN` points are split over that many numba threads
     (prange over chunks of the flattened grid). The same point gives the same bits whatever the
@@ -347,7 +348,7 @@ class NumbaEvaluator(Evaluator):
 
 
 def compiled_model(path, threads: int = 1) -> Evaluator:
-    """The `NumbaEvaluator` of a model saved by either backend (`spec.save_model`, `<path>.npz`
+    """The `NumbaEvaluator` of a model saved by either backend (`save_model`, `<path>.npz`
     and `<path>.json`), loaded with its weights: queries without torch or JAX; for a time-marching
     model the `MarchingEvaluator` over it."""
     saved = load_model(path)

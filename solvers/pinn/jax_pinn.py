@@ -1,20 +1,14 @@
 """The PINN adapter on JAX (CPU): the shared network under jax.jit, jvp / vmap / jacrev autodiff.
 
-Threads: XLA's CPU thread pool is sized when the backend starts (at the first computation, not
-at `import jax`), from the environment variable PJRT_NPROC. Checked with jax 0.10.2 by counting
-the process's threads: PJRT_NPROC changes the pool, set before the first computation even after
-`import jax`; "intra_op_parallelism_threads=N" in XLA_FLAGS changes nothing (it is not an XLA
-flag; an unknown "--xla_..." flag there aborts the process). The adapter sets PJRT_NPROC = threads
-and adds --xla_cpu_multi_thread_eigen=false to XLA_FLAGS (Eigen matmuls on the calling thread)
-and turns jax_cpu_enable_async_dispatch off if the backend has not started yet (process-wide
-settings); if it has, the message of fit / identify says so. float64 runs under `jax.enable_x64(True)` only
-(a context, so other JAX code in the process keeps its setting).
+Threads: XLA's CPU thread pool is sized once per process, before the backend starts
+(`solvers.threads.configure_threads`); if it has already started with another size, the message of
+fit / identify says so. float64 runs under `jax.enable_x64(True)` only (a context, so other JAX
+code in the process keeps its setting).
 """
 
 from __future__ import annotations
 
 import functools
-import os
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import Any, ClassVar
@@ -23,11 +17,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from solvers.pinn.common import Evaluator, PinnSolver, Trainer
+from solvers.pinn.architecture import Architecture
+from solvers.pinn.common import PinnSolver, Trainer
+from solvers.pinn.evaluator import Evaluator
 from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
-from solvers.pinn.spec import Architecture, Problem
+from solvers.pinn.problems import Problem
+from solvers.threads import configure_threads
 
-__all__ = ["OPS", "JaxPinn", "configure_threads"]
+__all__ = ["OPS", "JaxPinn"]
 
 
 def _asarray(x: np.ndarray, like: Any) -> Any:
@@ -46,28 +43,6 @@ _DATA_KEYS = ("t_u", "p_u", "targets", "t_f", "p_f", "start_u", "start_f")
 _JIT_CACHE: OrderedDict[tuple, tuple] = OrderedDict()
 _JIT_CACHE_SIZE = 8
 _DTYPES = {"float32": np.float32, "float64": np.float64}
-_threads_started: list[int] = []  # the thread count XLA started with, once known
-
-
-def configure_threads(threads: int) -> str:
-    """Size XLA's CPU thread pool before the backend starts; return a note if it is too late."""
-    from jax._src import xla_bridge
-
-    if not xla_bridge.backends_are_initialized():
-        os.environ["PJRT_NPROC"] = str(threads)
-        flags = os.environ.get("XLA_FLAGS", "")
-        if "xla_cpu_multi_thread_eigen" not in flags:
-            os.environ["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
-        # Run small computations on the calling thread: we always wait for the result, and the
-        # hand-off to a worker thread cost ~30 us of a 1-point query (measured: 57 -> 16 us).
-        jax.config.update("jax_cpu_enable_async_dispatch", False)
-        jax.devices("cpu")  # start the backend now, with these settings
-        _threads_started.append(threads)
-        return ""
-    started = str(_threads_started[0]) if _threads_started else os.environ.get("PJRT_NPROC", "default")
-    if started != str(threads):
-        return f"XLA had already started with {started} threads; threads={threads} not applied"
-    return ""
 
 
 class JaxPinn(PinnSolver):

@@ -8,7 +8,7 @@ same way (`jvp(f, primals, tangents)`, `vmap(f, in_dims)`, `jacrev(f)`). A backe
 Shapes: t (s) and P1 (p.u.) are arrays of one broadcast shape S (a batch (n_s,), a grid
 (n_p, n_t) from (1, n_t) and (n_p, 1), or scalars for per-point Jacobians); every output has shape
 S + (n,), one entry per machine on the last axis (n = 1 for the SMIB). `theta` is the flat
-parameter vector of `spec.Architecture` or its split list (`Architecture.split`); Jacobians are
+parameter vector of an `Architecture` or its split list (`Architecture.split`); Jacobians are
 taken with respect to the split list. A time-marching window's network takes each point's start
 state `start` = (delta_s, omega_s), arrays broadcasting to S + (n,), in place of the architecture's
 fixed initial condition, and t is the time since the window's start.
@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from solvers.pinn.spec import Architecture, Problem
+from solvers.pinn.architecture import Architecture
+from solvers.pinn.problems import Problem
 from systems.cases import Case
 from systems.model import Coupling, coupling, residual
 
@@ -172,7 +173,7 @@ def physics_parameters(arch: Architecture, theta: Any, physics: Physics, ops: Op
 
 def powers(p: Any, physics: Physics, ops: Ops) -> Any:
     """Mechanical powers S + (n,) p.u. for generator 1's P1 = p (shape S): P1 and the others' p_m.
-    For one machine just p (the same arithmetic as before the N-machine model)."""
+    For one machine just p (no column of other machines to append)."""
     if physics.n == 1:
         return p[..., None]
     return p[..., None] * ops.asarray(physics.first, p) + ops.asarray(physics.rest, p)

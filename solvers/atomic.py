@@ -1,6 +1,7 @@
 """Whole-file writes: a temporary file beside the target, synced, then renamed over it, so a reader
 (or a crash) sees the old file or the whole new one, never half of one. Imports nothing of ours:
-the solvers' model files and the harness's tables use it alike."""
+the solvers' model files and the harness's tables use it alike (so it sits in solvers/, the
+lower of the two layers)."""
 
 from __future__ import annotations
 

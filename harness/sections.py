@@ -1,0 +1,142 @@
+"""The report's text, shared by `tables.md` (`harness.report`) and the documentation pages
+(`harness.pages`): the rows as frames by suite (`suite_frames`) and by case (`case_sections`), the
+run's lines (`header`, `work_minutes`), a case's section (`section_markdown`: the options its
+names leave out, its verdicts, its tables) and the scaling section (`scaling_markdown`).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from harness.labels import Labels
+from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
+from harness.store import unit_key
+from harness.suites import identification_case
+from harness.verdict import verdict_lines
+from systems.cases import CASES
+
+__all__ = ["case_sections", "header", "scaling_labels", "scaling_markdown", "section_markdown",
+           "suite_frames", "verdict_markdown", "work_minutes"]
+
+
+def _identification_case(name: str, identified: set[str]) -> str:
+    """The case identification measures for forward case `name`: the planner's rule
+    (`harness.suites.identification_case`, from the case's kind) on the registered case. A case
+    that has identification rows of its own (`identified`) is its own identification case by that
+    rule, and an unregistered name is taken as its own: then no network is built to say so."""
+    if name in identified or name not in CASES:
+        return name
+    return identification_case(CASES[name]).name
+
+
+def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, pd.DataFrame]]]:
+    """The frames of each forward case, in run order: its rows of every suite, and the
+    identification rows of its identification case (the SMIB's own case for a SMIB). In a case
+    without an infinite bus (any work-precision row with `rel_l2_delta_coi`) the verdicts compare
+    at the accuracy of the angles relative to the centre of inertia: `rel_l2_delta` is replaced by
+    it there (absolute angles drift together; their error says little about the swings)."""
+    names: list[str] = []
+    for suite, df in frames.items():
+        if suite not in ("identification", "scaling", "fit") and "case" in df:
+            names += [n for n in df["case"].dropna().unique() if n not in names]
+    ident = frames.get("identification")
+    identified = set(ident["case"].dropna()) if ident is not None and "case" in ident else set()
+    if ident is not None and "case" in ident:
+        covered = {_identification_case(n, identified) for n in names}
+        names += [n for n in ident["case"].dropna().unique() if n not in covered and n not in names]
+    sections = []
+    for name in names:
+        own = {}
+        for suite, df in frames.items():
+            if suite == "scaling":  # across cases: its own section (`scaling_markdown`)
+                continue
+            case = _identification_case(name, identified) if suite == "identification" else name
+            part = df[df["case"] == case].dropna(axis=1, how="all").reset_index(drop=True) if "case" in df else df
+            if suite == "work_precision" and "rel_l2_delta_coi" in part:
+                part = part.assign(rel_l2_delta=part["rel_l2_delta_coi"].fillna(part["rel_l2_delta"]))
+            if not part.empty:
+                own[suite] = part
+        sections.append((name, own))
+    return sections
+
+
+def suite_frames(rows: list[dict]) -> dict[str, pd.DataFrame]:
+    """The rows of each suite, in run order, as a frame without the columns none of them fills."""
+    frame = pd.DataFrame(rows)
+    if frame.empty:
+        return {}
+    return {suite: g.dropna(axis=1, how="all").reset_index(drop=True)
+            for suite, g in frame.groupby("suite", sort=False)}
+
+
+def header(meta: dict) -> str:
+    """The run's line: date, CPU, threads, commit, settings and library versions."""
+    get = lambda key: meta.get(key, "?")
+    return (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}, "
+            f"settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
+            f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}, "
+            f"numba {get('version_numba')}, diffrax {get('version_diffrax')}.\n\n")
+
+
+def work_minutes(rows: list[dict]) -> str:
+    """One line: the wall time of the run's units of work (their rows' `work_s`, each unit once),
+    by case and in all, in minutes; "" for rows without it (written before it was recorded)."""
+    seconds: dict[str, float] = {}
+    timed, units = set(), set()
+    for row in rows:
+        key = unit_key(row)
+        units.add(key)
+        if row.get("work_s") is not None and key not in timed:
+            timed.add(key)
+            seconds[row["case"]] = seconds.get(row["case"], 0.0) + float(row["work_s"])
+    if not seconds:
+        return ""
+    parts = ", ".join(f"{case} {s / 60:.1f}" for case, s in seconds.items())
+    some = "" if timed == units else f" (only {len(timed)} of its {len(units)} units recorded it: older rows have none)"
+    return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all{some}.\n\n"
+
+
+def section_markdown(name: str, frames: dict, tables: dict, level: str = "###", heading: str | None = None) -> str:
+    """A case's section: its heading (`heading`, default "Case <name>"), the options its names leave
+    out, its verdicts and every table of `tables` (`build_tables`), each configuration named by
+    `harness.labels.Labels` of the case's rows."""
+    labels = Labels(frames)
+    return (f"{level[:-1]} {heading or f'Case {name}'}\n\n" + verdict_markdown(frames, labels, level)
+            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
+                        for title, table in tables.values()))
+
+
+def verdict_markdown(frames: dict, labels: Labels | None = None, level: str | None = "###") -> str:
+    """The note on the options left out of the names, then the verdict sentences of a case as a
+    list, under a heading of `level` (None: no heading); "" for a case with neither."""
+    labels = labels or Labels(frames)
+    note = labels.note()
+    lines = verdict_lines(frames)
+    head = f"{level} Verdict of this case\n\n" if lines and level else ""
+    return ((f"{note}\n\n" if note else "")
+            + (head + "".join(f"- {labels.text(line, '`{}`')}\n" for line in lines) + "\n" if lines else ""))
+
+
+def scaling_labels(frames: dict) -> Labels:
+    """The names of the scaling section: the options every scaling unit of a configuration shares
+    (the suite's training budget) are left out."""
+    return Labels({suite: df for suite, df in frames.items() if suite in ("scaling", "fit")})
+
+
+def scaling_markdown(frames: dict, level: str = "###") -> str:
+    """The scaling section ("" when the run has no scaling rows): cost, memory and accuracy per
+    adapter and N, fitted exponents, break-even trajectories of each PINN, units that did not fit."""
+    frame = scaling_frame(frames)
+    tables = [("Cost, memory and accuracy against the number of machines N", scaling_table(frame)),
+              ("Fitted exponents b of cost ~ N^b (least squares in log-log, N >= 2)", exponents(frame)),
+              ("Break-even: trajectories after which a PINN's preparation pays off", break_even_by_n(frame)),
+              ("Units that did not run to the end", status_by_n(frames))]
+    tables = [(title, table) for title, table in tables if not table.empty]
+    if not tables:
+        return ""
+    labels = scaling_labels(frames)
+    scaling = frames.get("scaling", pd.DataFrame(columns=["solver", "config"]))
+    note = labels.note(set(zip(scaling["solver"], scaling["config"])))
+    return (f"\n{level[:-1]} Scaling\n\n" + (f"{note}\n\n" if note else "")
+            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
+                        for title, table in tables))

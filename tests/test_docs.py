@@ -1,0 +1,94 @@
+"""The README's verdicts and the site's results pages are generated from the rows; configurations
+are named by one label function (`harness.labels.Labels`) in tables, plots and verdicts."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from harness.cli import README_END, README_START, main
+from harness.labels import Labels, split_items
+from harness.pages import GENERATED, readme_block, write_pages
+from harness.report import write_report
+from harness.store import RowStore
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_the_readme_verdicts_are_what_the_report_writes_from_the_landed_rows():
+    """No hand-typed figure can hide in the README's generated block: it must be, character for
+    character, what `swingbench report results --update-readme README.md` writes from the rows."""
+    rows = RowStore(ROOT / "results", create=False).read().rows
+    meta = json.loads((ROOT / "results" / "metadata.json").read_text(encoding="utf-8"))
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(README_START, 1)[1].split(README_END, 1)[0]
+    assert block == readme_block(rows, meta, ROOT / "README.md", ROOT / "docs" / "results", ROOT / "results")
+
+
+def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:
+    return pd.DataFrame([{"solver": s, "config": c, "variant": v} for s, c, v in specs])
+
+
+def test_a_name_leaves_out_the_options_every_row_of_its_configuration_shares():
+    rows = _frame(("jax-pinn", "marching", "id_max_seconds=120.0,max_seconds=120.0"),
+                  ("jax-pinn", "marching", "id_max_seconds=120.0,max_seconds=120.0,query=numba"),
+                  ("numba-rk", "rk4", ""), ("numba-rk", "rk4", "parallel=True"),
+                  ("scipy-rk45", "default", ""), ("scipy-rk45", "default", "batch=stacked"))
+    names = Labels({"latency": rows})
+    assert names("jax-pinn [marching, id_max_seconds=120.0,max_seconds=120.0,query=numba]") == \
+        "jax-pinn marching · numba query"
+    assert names("jax-pinn [marching, id_max_seconds=120.0,max_seconds=120.0]") == "jax-pinn marching"
+    assert names("numba-rk [rk4, parallel=True, dt=0.05]") == "numba-rk rk4 · parallel · dt=0.05"  # a sweep point
+    assert names("scipy-rk45 [default, batch=stacked]") == "scipy-rk45 default · stacked batch"
+    assert names("scipy-rk45 [default]") == "scipy-rk45 default"
+    assert names.note() == ("Names leave out the options that every row of a configuration shares: "
+                            "jax-pinn marching: id_max_seconds=120.0, max_seconds=120.0.")
+    # keys inside text: ladder cells and verdict sentences; not a spec of these rows: as it is
+    assert names.text("numba-rk [rk4, parallel=True]: 6 ms (PINN 1.4x faster)", "`{}`") == \
+        "`numba-rk rk4 · parallel`: 6 ms (PINN 1.4x faster)"
+    assert names.text("torch-pinn [default] 1 ms; median [min, max] 8.27e-06 [1e-06, 2e-05]") == \
+        "torch-pinn [default] 1 ms; median [min, max] 8.27e-06 [1e-06, 2e-05]"
+    table = names.table(pd.DataFrame({"solver": ["numba-rk [rk4]"], "ms": [1.5]}))
+    assert table.to_dict("list") == {"solver": ["numba-rk rk4"], "ms": [1.5]}
+
+
+def test_a_shared_option_is_kept_where_the_rows_differ_in_it_and_values_may_be_lists():
+    rows = _frame(("torch-pinn", "default", "max_iterations=20,widths=[10, 20]"),
+                  ("torch-pinn", "default", "max_iterations=50,widths=[10, 20],device=cuda"),
+                  ("torch-pinn", "paper", "optimizer=lbfgs,max_seconds=None"))
+    names = Labels(rows)
+    assert split_items("max_iterations=20,widths=[10, 20]") == ["max_iterations=20", "widths=[10, 20]"]
+    assert names("torch-pinn [default, max_iterations=50,widths=[10, 20],device=cuda]") == \
+        "torch-pinn default · max_iterations=50 · cuda device"
+    assert names("torch-pinn [paper, optimizer=lbfgs,max_seconds=None]") == "torch-pinn paper"
+    assert "torch-pinn paper: max_seconds=None, optimizer=lbfgs" in names.note()
+
+
+def test_the_report_writes_a_page_per_case_and_replaces_only_its_own_pages(tmp_path):
+    base = {"variant": "", "threads": 2, "status": "ok", "seed": -1}
+    rows = [{"suite": "accuracy", "case": case, "solver": "scipy-odeint", "config": "default", **base,
+             "quantity": "delta", "against": "reference", "rel_l2": 1e-4, "max_abs": 1e-4,
+             "worst_trajectory_rel_l2": 2e-4} for case in ("smib-inference", "wscc9")]
+    results, pages = tmp_path / "results", tmp_path / "docs" / "results"
+    pages.mkdir(parents=True)
+    (pages / "ieee39.md").write_text(f"{GENERATED}\nan earlier run's case\n")
+    (pages / "notes.md").write_text("written by hand\n")
+    write_report(rows, results, {"threads": 2}, plots=False)
+    written = write_pages(rows, {"threads": 2}, pages, results)
+    assert sorted(p.name for p in written) == ["index.md", "smib-inference.md", "wscc9.md"]
+    assert not (pages / "ieee39.md").exists() and (pages / "notes.md").exists()
+    page = (pages / "wscc9.md").read_text()
+    assert page.startswith(f"{GENERATED}\n# Results: wscc9\n") and "| wscc9  | scipy-odeint default |" in page
+    assert "[wscc9](wscc9.md)" in (pages / "index.md").read_text()
+    # the same through the command line, into the README's block
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{README_START}\nold\n{README_END}\n")
+    (results / "rows.jsonl").write_text("".join(json.dumps(row) + "\n" for row in rows))
+    assert main(["report", str(results), "--update-readme", str(readme)]) == 0
+    text = readme.read_text()
+    assert "[smib-inference](docs/results/smib-inference.md)" in text and "old" not in text
+    meta = json.loads((results / "metadata.json").read_text())
+    assert text == f"intro\n{README_START}{readme_block(rows, meta, readme, pages, results)}{README_END}\n"
+
