@@ -12,6 +12,8 @@ import re
 import numpy as np
 import pandas as pd
 
+from solvers import INTERFACE, LITERATURE_BASELINE
+
 __all__ = [
     "COI_DELTA",
     "COMPILED",
@@ -154,7 +156,7 @@ LITERATURE = "literature baseline (scipy RK45, one solve per P1)"
 PYTHON_DRIVEN = "best Python-driven classical"
 COMPILED = "best compiled classical"
 RUNGS = (LITERATURE, PYTHON_DRIVEN, COMPILED)
-LITERATURE_SOLVER = "scipy-rk45"  # looped, as MATLAB ode45 was in the paper's 28x and 87x
+LITERATURE_SOLVER = LITERATURE_BASELINE  # looped, as MATLAB ode45 was in the paper's 28x and 87x
 
 
 T1_COLUMN = re.compile(r"point_t1=(?P<t1>[0-9.e+-]+)_median_s")
@@ -176,7 +178,7 @@ def compiled(df: pd.DataFrame) -> pd.Series:
 def does_work(df: pd.DataFrame) -> pd.Series:
     """Rows of real adapters, not of the do-nothing one that times the interface (`solvers.INTERFACE`;
     rows of runs before the `does_work` column are told by that name)."""
-    by_name = df["solver"] != "interface-overhead"
+    by_name = df["solver"] != INTERFACE
     if "does_work" not in df:
         return by_name
     return df["does_work"].fillna(by_name).astype(bool)

@@ -19,6 +19,7 @@ from harness.analysis import (
     ok,
     trained,
 )
+from solvers.pinn.config import DEFAULT_CONFIG, PAPER_CONFIG, PAPER_TWO_OUTPUTS_CONFIG
 from systems.reference import PAPER_DATA, REFERENCE_DATA
 
 __all__ = ["PAPER", "paper_table"]
@@ -66,14 +67,14 @@ def _forward_rows(frames: dict) -> list[dict]:
     delta, omega, fit = _delta_errors(frames), _delta_errors(frames, "omega"), ok(frames.get("fit"))
     if delta.empty:
         return []
-    fit_s = {c: _per_backend(fit, c, "fit_s") for c in ("paper", "default", "paper-two-outputs")} if not fit.empty else {}
+    fit_s = {c: _per_backend(fit, c, "fit_s") for c in (PAPER_CONFIG, DEFAULT_CONFIG, PAPER_TWO_OUTPUTS_CONFIG)} if not fit.empty else {}
     cell = lambda config: _join({s: f"{fmt(e)} after {fmt(fit_s.get(config, {}).get(s, float('nan')))} s"
                                  for s, e in _per_backend(delta, config, "rel_l2").items()})
     classical = delta[~trained(delta)]
     best = classical.loc[classical["rel_l2"].idxmin()] if not classical.empty else None
-    paper_errors = _per_backend(delta, "paper", "rel_l2")
+    paper_errors = _per_backend(delta, PAPER_CONFIG, "rel_l2")
     ratio = {s: e / PAPER["forward_rel_l2"] for s, e in paper_errors.items()}
-    default_best = min(_per_backend(delta, "default", "rel_l2").values(), default=float("nan"))
+    default_best = min(_per_backend(delta, DEFAULT_CONFIG, "rel_l2").values(), default=float("nan"))
     shows = []
     if ratio:
         shows.append("paper setup " + ", ".join(
@@ -83,12 +84,12 @@ def _forward_rows(frames: dict) -> list[dict]:
     rows = [{
         "claim": "forward: rel. L2 of delta on 100 x 201, training time",
         "paper": f"{PAPER['forward_rel_l2']} after {PAPER['forward_train_s']:g} s (GPU)",
-        "ours, paper config": cell("paper"), "ours, default": cell("default"),
+        "ours, paper config": cell(PAPER_CONFIG), "ours, default": cell(DEFAULT_CONFIG),
         "best classical": "n/a" if best is None else f"{best['label']}: {fmt(best['rel_l2'])}",
         "what it shows": "; ".join(shows),
     }]
-    two_d = _per_backend(delta, "paper-two-outputs", "rel_l2")
-    two_o = _per_backend(omega, "paper-two-outputs", "rel_l2")
+    two_d = _per_backend(delta, PAPER_TWO_OUTPUTS_CONFIG, "rel_l2")
+    two_o = _per_backend(omega, PAPER_TWO_OUTPUTS_CONFIG, "rel_l2")
     best_o = omega[~trained(omega)]["rel_l2"].min() if not omega.empty else float("nan")
     better = [s for s in two_d if two_d[s] < PAPER["two_outputs_delta"] and two_o.get(s, 1) < PAPER["two_outputs_omega"]]
     rows.append({
@@ -96,7 +97,7 @@ def _forward_rows(frames: dict) -> list[dict]:
         "paper": f"{PAPER['two_outputs_delta']} / {PAPER['two_outputs_omega']} (N_f = 50,000, ~30 min)",
         "ours, paper config": _join({s: f"{fmt(two_d[s])} / {fmt(two_o.get(s, float('nan')))}" for s in two_d}),
         "ours, default": _join({s: f"{fmt(e)} / {fmt(_per_backend(omega, 'default', 'rel_l2').get(s, float('nan')))}"
-                                for s, e in _per_backend(delta, "default", "rel_l2").items()}),
+                                for s, e in _per_backend(delta, DEFAULT_CONFIG, "rel_l2").items()}),
         "best classical": f"omega {fmt(best_o)}",
         "what it shows": (f"better than the paper: {', '.join(better)}" if better else "not better than the paper")
         if two_d else "not run",
@@ -121,8 +122,8 @@ def _identification_row(df: pd.DataFrame, claim: str, shows: str) -> dict:
     return {
         "claim": claim,
         "paper": f"{PAPER['identify_m_pct']} % / {PAPER['identify_d_pct']} % in < 60 s",
-        "ours, paper config": cell(df[trained(df) & (df["config"] == "paper")]),
-        "ours, default": cell(df[trained(df) & (df["config"] == "default")]),
+        "ours, paper config": cell(df[trained(df) & (df["config"] == PAPER_CONFIG)]),
+        "ours, default": cell(df[trained(df) & (df["config"] == DEFAULT_CONFIG)]),
         "best classical": "n/a" if b is None else f"{best}: {fmt(100 * b['m_rel_error'].mean())} % / "
                                                    f"{fmt(100 * b['d_rel_error'].mean())} % in {fmt(b['identify_s'].median())} s",
         "what it shows": shows,
@@ -176,7 +177,7 @@ def _speed_row(frames: dict, query: str, claim: str, pinn_s: float, ode45_s: flo
     steps = ladder(frames, query)
     if not steps.empty:  # per configuration of this table's columns, its fastest spec (the ladder table has all)
         config = steps["pinn"].str.extract(r"\[([^,\]]+)")[0]
-        steps = steps[config.isin(["paper", "default"])]
+        steps = steps[config.isin([PAPER_CONFIG, DEFAULT_CONFIG])]
         steps = steps.loc[steps.groupby(config[steps.index], sort=False)["pinn_s"].idxmin()]
 
     def cell(config: str) -> str:
@@ -188,7 +189,7 @@ def _speed_row(frames: dict, query: str, claim: str, pinn_s: float, ode45_s: flo
     return [{
         "claim": claim,
         "paper": f"{pinn_s:g} s vs {ode45_s:g} s ode45 ({ode45_s / pinn_s:.0f}x)",
-        "ours, paper config": cell("paper"), "ours, default": cell("default"),
+        "ours, paper config": cell(PAPER_CONFIG), "ours, default": cell(DEFAULT_CONFIG),
         "best classical": "n/a" if fastest is None else f"fastest: {fastest['label']} {fmt(fastest['median_s'])} s; "
                                                          f"ode45-like: {fmt(ode45_s_ours)} s",
         "what it shows": "at matched accuracy (seed 0): " + " | ".join(

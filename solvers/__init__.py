@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # annotations only: the registry itself imports nothing but t
     from solvers.base import AbstractSolver
     from systems.cases import Case
 
-__all__ = ["ENTRY_POINT_GROUP", "INTERFACE", "SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers",
+__all__ = ["ENTRY_POINT_GROUP", "INTERFACE", "LITERATURE_BASELINE", "SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers",
            "make_solver", "plugin_distribution", "solver_class"]
 
 ENTRY_POINT_GROUP = "swingbench.solvers"
@@ -35,6 +35,10 @@ _PROJECT = "swingbench"
 # The do-nothing adapter that times the interface itself: runs make it (latency suite only), the
 # registry does not list it, so the CLI, the contract tests and asv never take it for a solver.
 INTERFACE = "interface-overhead"
+
+# The adapter that stands for the paper's baseline, MATLAB ode45 looped over P1 (its 28x and 87x):
+# the first rung of every verdict.
+LITERATURE_BASELINE = "scipy-rk45"
 
 
 class SolverUnavailable(RuntimeError):

@@ -24,7 +24,14 @@ from solvers.options import (
     validate_options,
 )
 
-__all__ = ["CONFIGS", "CONFIG_FIELDS", "PinnConfig", "PinnConfigSchema"]
+__all__ = ["CONFIGS", "CONFIG_FIELDS", "DEFAULT_CONFIG", "PAPER_CONFIG", "PAPER_TWO_OUTPUTS_CONFIG", "PinnConfig",
+           "PinnConfigSchema"]
+
+# The configs the report sets beside the paper's own figures: the paper's setup, its two-output
+# variant, and ours.
+PAPER_CONFIG = "paper"
+PAPER_TWO_OUTPUTS_CONFIG = "paper-two-outputs"
+DEFAULT_CONFIG = "default"
 
 
 @dataclass(frozen=True)
