@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from harness import sweep  # imports only the standard library until a sweep runs
+from harness.cli_options import add_shared_options, progress_setting
 from harness.usage import UsageError
 
 
@@ -79,34 +80,28 @@ def _parser() -> argparse.ArgumentParser:
                       help="smoke test, a few minutes: one seed, 150 PINN iterations, small timing budgets")
     size.add_argument("--full", action="store_true",
                       help="every seed (5), the paper's (m, d) and the 10 pairs, both noise levels; long")
-    run.add_argument("--resume", action="store_true",
-                     help="keep OUT/rows.jsonl and run only the units of work it does not record as complete "
-                          "(what an interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured "
-                          "again; failed units are results and are kept); resuming a finished run changes nothing")
     run.add_argument("--noise-draws", type=int, default=None, metavar="K",
                      help="identify from K draws of the noise at each noise level above 0 (default 1): the "
                           "identification table then counts how often each 95 %% interval holds the truth")
-    run.add_argument("--retrain", action="store_true", help="train again even if a cached model exists")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
-    run.add_argument("--out", type=Path, default=Path("results"), help="output folder (default results/)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
                      help="also replace the generated verdicts section of this README (and write the results "
                           "pages, --docs)")
     run.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
-    run.add_argument("--progress", choices=["auto", "on", "off"], default="auto",
-                     help="progress bar on stderr (auto: only on a terminal)")
     run.add_argument("--unit-seconds", type=float, default=None, metavar="S",
                      help="run each unit (an adapter on a case: build, fit, suites) in a fresh process and "
                           "stop it after S seconds with a 'skipped: out of time' row (scaling: 1800)")
     run.add_argument("--unit-memory", type=float, default=None, metavar="MIB",
                      help="likewise, stop a unit whose resident memory exceeds MIB MiB (scaling: 16384)")
-    where = run.add_mutually_exclusive_group()
-    where.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                       help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) "
-                            "instead of in this process; its workers need swingbench installed and run one "
-                            "unit at a time (dask worker ADDRESS --nthreads 1)")
-    where.add_argument("--dask-local", action="store_true",
-                       help="run the units on a local dask.distributed cluster of one worker process")
+    add_shared_options(
+        run, out=Path("results"),
+        resume_help="keep OUT/rows.jsonl and run only the units of work it does not record as complete (what an "
+                    "interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured again; failed "
+                    "units are results and are kept); resuming a finished run changes nothing",
+        scheduler_help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) instead of in "
+                       "this process; its workers need swingbench installed and run one unit at a time (dask worker "
+                       "ADDRESS --nthreads 1)",
+        dask_local_help="run the units on a local dask.distributed cluster of one worker process")
 
     report = sub.add_parser("report", help="re-render tables from a results folder without running",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
@@ -198,10 +193,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     meta = {**metadata(args.threads, outputs), "settings": settings.name, "argv": argv,
             "blas_threads_by_adapter": blas or "as pinned"}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
-    progress = {"auto": None, "on": True, "off": False}[args.progress]
     try:
         with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
-            counts = execute(units, settings, store, executor, progress=progress,
+            counts = execute(units, settings, store, executor, progress=progress_setting(args),
                              done=contents.completed if contents else None)  # resume prepared
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)

@@ -37,6 +37,7 @@ from harness.timing import blas_threads, pinned_threads
 from harness.usage import EXIT_FAILED, UsageError
 from solvers import UNAVAILABLE, solver_class
 from solvers.base import AbstractSolver, FitReport
+from solvers.progress import progress_enabled
 from systems.cases import Case
 
 __all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "inline",
@@ -171,8 +172,8 @@ def inline(jobs: list[tuple[Unit, tuple[str, ...]]], settings: Settings
 
 
 def _progress_bar(total: int, enabled: bool | None):
-    """The one progress policy: a bar of units of work on stderr, by default only on a terminal."""
-    if not (sys.stderr.isatty() if enabled is None else enabled):
+    """A bar of units of work on stderr when `progress_enabled(enabled)` (solvers.progress)."""
+    if not progress_enabled(enabled):
         return None
     from tqdm import tqdm
 

@@ -151,27 +151,20 @@ QUICK = Settings(
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
-# make bench: every suite on the SMIB and the three multi-machine cases in about an hour on 2
-# cores. Measured 2026-11-27: with two seeds, 1 s of repeats per timing and full sweeps everywhere,
-# SMIB + wscc9 ~67 min and ieee39 ~32 min more; with the cuts below (commit 448fd6c, which still
-# identified a second SMIB pair) all four cases in 68 min (SMIB 12, wscc9 16, kundur4 12, ieee39 16,
-# SMIB identification 12, of which the second pair 3.8), 30 of them in timed calls (latency and
-# work-precision; a model of them from that run's repeats and medians puts them at 23 min with the
-# 0.25 s and 3 repeats below). With every cut below (commit 146a219): 55 min, ~1.6 of them outside the
-# units (numba's cache, the report); units of work SMIB 8.5, wscc9 15.1, kundur4 10.0, ieee39 15.0, SMIB identification
-# 5.1 min (the report's line). The cuts: one seed (--full: five), the configs marked as ablations
-# (the two-output PINNs) and those for large systems only when named (--config), 0.25 s of repeats per timing (at least 3: a call
-# of 1 ms is timed ~250 times, one of 0.1 s 3 times), scipy RK45 identified once (not again for
-# its batch mode, which changes its queries only), a latency query
-# estimated over 10 s skipped (a row says so), on the multi-machine cases the Python-driven
-# adapters sweep three tolerances (the compiled ones all eight: the verdicts compare with them), the
-# SMIB identified at the paper's own case only (m = 0.25, d = 0.15, also from the paper's ode45
-# data), at both noise levels. Multi-machine cases: PINNs (their configs made for networks) train within the stated
-# wall-clock budget per case (the issue's 5- and 10-minute targets are measured apart, see the
-# README); identification noise-free, on wscc9 only (each classical adapter takes 1-80 s there; on
-# kundur4 and ieee39 minutes more per adapter). --full runs everything: every seed and config, the
-# paper's case and the 10 pairs, both noise levels, the identification of every multi-machine case,
-# every sweep, PINNs within their configs' own budgets.
+# make bench: every suite on the SMIB and the three multi-machine cases within about an hour on 2
+# cores (the measured durations are in docs/notebook.md). The cuts that buy it: one seed (--full:
+# five); the configs marked as ablations (the two-output PINNs) and those for large systems only when
+# named (--config); 0.25 s of repeats per timing, at least 3 (a call of 1 ms is timed ~250 times,
+# one of 0.1 s 3 times); scipy RK45 identified once (not again for its batch mode, which changes its
+# queries only); a latency query estimated over 10 s skipped (a row says so); on the multi-machine
+# cases the Python-driven adapters sweep three tolerances (the compiled ones all eight: the verdicts
+# compare with them); the SMIB identified at the paper's own case only (m = 0.25, d = 0.15, also from
+# the paper's ode45 data), at both noise levels. Multi-machine cases: PINNs (their configs made for
+# networks) train within the stated wall-clock budget per case (the 5- and 10-minute training
+# targets are measured apart, see the README); identification noise-free, on wscc9 only (each
+# classical adapter takes 1-80 s there; on kundur4 and ieee39 minutes more per adapter). --full runs
+# everything: every seed and config, the paper's case and the 10 pairs, both noise levels, the
+# identification of every multi-machine case, every sweep, PINNs within their configs' own budgets.
 DEFAULT = Settings(
     seeds=(0,),
     latency_budget_s=0.25,

@@ -43,7 +43,7 @@ class ScipyRK45(AbstractSolver):
     Options: rtol, atol (defaults 1e-3, 1e-6: MATLAB ode45's, which made the paper's data);
     batch: "loop" (one `solve_ivp` per P1, the default) or "stacked" (one system of 2 * len(P1)
     states; the step size then follows the hardest trajectory); m_bounds, d_bounds (p.u.): the
-    search box of `identify`, which always simulates stacked.
+    search box of `identify`, which simulates every P1 in one stacked system whatever `batch`.
     """
 
     name: ClassVar[str] = "scipy-rk45"
@@ -53,7 +53,7 @@ class ScipyRK45(AbstractSolver):
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     VARIANTS = ({"batch": "stacked"},)
-    QUERY_OPTIONS = frozenset({"batch"})  # `identify` integrates one P1 at a time in either mode
+    QUERY_OPTIONS = frozenset({"batch"})  # `identify` simulates stacked in either mode
 
     def _fit(self) -> None:
         pass

@@ -15,7 +15,6 @@ from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network
 from solvers.pinn.architecture import Architecture, init_theta, start_guess
-from solvers.pinn.common import _progress_enabled
 from solvers.pinn.config import PinnConfig
 from solvers.pinn.evaluator import MarchingEvaluator
 from solvers.pinn.model_file import CorruptModelError, load_model
@@ -27,6 +26,7 @@ from solvers.pinn.problems import (
     window_edges,
     window_problem,
 )
+from solvers.progress import progress_enabled
 from systems import model
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
 from systems.reference import reference
@@ -594,8 +594,8 @@ def test_torch_trains_on_the_device_it_is_given():
 
 
 def test_progress_is_quiet_under_pytest():
-    assert _progress_enabled(None) is False
-    assert _progress_enabled(True) is True
+    assert progress_enabled(None) is False
+    assert progress_enabled(True) is True
 
 
 # ---- N machines and time-marching ------------------------------------------------------------------

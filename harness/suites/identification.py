@@ -43,7 +43,9 @@ def observations(case: Case, n_u: int = 100, noise: float = 0.0, seed: int = 0,
     flat = rng.choice(delta.shape[0] * delta.shape[1], size=n_u, replace=False)
     i, j = np.unravel_index(flat, delta.shape[:2])
     values = delta[i, j]  # (n_u, n)
-    if noise > 0:  # one draw a sample for the SMIB, as before; one a machine and sample otherwise
+    # Drawn as (n, n_u) and transposed: for the SMIB (n = 1) the same draws as one a sample, so its
+    # noisy data does not depend on the machine axis; one a machine and sample otherwise.
+    if noise > 0:
         values = values * (1.0 + noise * rng.standard_normal(values.shape[::-1]).T)
     return Observations(t[j], P1[i], values)
 

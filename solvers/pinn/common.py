@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-import os
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -38,6 +36,7 @@ from solvers.pinn.problems import (
     window_edges,
     window_problem,
 )
+from solvers.progress import progress_enabled
 from systems.cases import NETWORK, SMIB, Observations
 
 __all__ = ["PinnSolver", "Trainer"]
@@ -52,15 +51,6 @@ class Trainer:
     residuals: Callable[[np.ndarray], np.ndarray]
     jacobian: Callable[[np.ndarray], np.ndarray]
     loss_and_grad: Callable[[np.ndarray], tuple[float, np.ndarray]]
-
-
-def _progress_enabled(setting: bool | None) -> bool:
-    """None = auto: on for an interactive terminal, off under pytest, CI or a pipe."""
-    if setting is not None:
-        return bool(setting)
-    if "PYTEST_CURRENT_TEST" in os.environ or "pytest" in sys.modules or os.environ.get("CI"):
-        return False
-    return sys.stderr.isatty()
 
 
 class PinnOptions(PinnConfigSchema):
@@ -154,7 +144,7 @@ class PinnSolver(AbstractSolver):
         trainer = trainer or self._compile(arch, problem, self.physics, config.dtype)
         bar = None
         progress = None
-        if _progress_enabled(self.options["progress"]):
+        if progress_enabled(self.options["progress"]):
             from tqdm.auto import tqdm
 
             bar = tqdm(desc=f"{self.name} {what}", unit="it", leave=False)  # budget: time or iterations

@@ -147,7 +147,7 @@ CONFIG_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(PinnCo
 CONFIGS: dict[str, dict[str, Any]] = {
     # The best we found (measured on 2 threads with a 55 s budget, seeds 0-2, rel. L2 of delta / omega:
     # JAX 1.2e-6..2.1e-6 / 4.5e-6..6.1e-6 in ~4500 LM iterations, torch 7.7e-6..1.3e-5 / 1.9e-5..4.1e-5
-    # in ~1600; now bounded by 2000 LM iterations, 1000 for identification; the choices below were
+    # in ~1600; the configs bound training by 2000 LM iterations instead, 1000 for identification; the choices below were
     # made with JAX on 1 thread): float64 (float32 stalls the loss near 1e-7 relative), hard initial conditions (the paper's data-only initial condition leaves
     # 4e-3..8e-3 in float64), Levenberg-Marquardt (optim.py), and a small 2 x 16 network on 2000
     # points: a smaller Jacobian buys more LM iterations in the budget (Marquardt scaling, seed 0:
