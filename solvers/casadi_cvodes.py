@@ -14,9 +14,11 @@ from solvers.classical import (
     TOLERANCE_MARKS,
     ObservationLayout,
     ToleranceOptions,
+    at_query_times,
     identify_least_squares,
     run_batch,
     search_boxes,
+    which_p1,
 )
 from solvers.options import PositiveInt
 from systems.cases import Case, Observations
@@ -125,9 +127,8 @@ class CasadiCVODES(AbstractSolver):
         try:
             return [np.asarray(out) for out in fn(*args)]
         except RuntimeError as exc:
-            where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
             reason = str(exc).strip().splitlines()[-1]
-            raise SolveError(f"{self.name}: CVODES failed at {where}: {reason}") from exc
+            raise SolveError(f"{self.name}: CVODES failed at {which_p1(P1)}: {reason}") from exc
 
     def _x0(self, n_p: int) -> np.ndarray:
         """Initial states (2n, n_p), one column per trajectory."""
@@ -145,10 +146,9 @@ class CasadiCVODES(AbstractSolver):
         return xf.reshape(2 * n, n_p, times.size).transpose(1, 2, 0)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        times, order = np.unique(t, return_inverse=True)
         case = self.case
         m, d = np.asarray(case.m), np.asarray(case.d)
-        y = run_batch(lambda p1: self._states(times, p1, m, d), P1)[:, order]
+        y = at_query_times(lambda times: run_batch(lambda p1: self._states(times, p1, m, d), P1), t)
         return y[..., :case.n], y[..., case.n:]
 
     def _build_identifier(self, times: tuple[float, ...], n_p1: int):

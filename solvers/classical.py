@@ -17,8 +17,8 @@ from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "ToleranceOptions", "check_step", "identify_least_squares",
-           "search_boxes"]
+__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "ToleranceOptions", "at_query_times",
+           "check_step", "identify_least_squares", "run_batch", "search_boxes", "which_p1"]
 
 
 class ToleranceOptions(OptionSchema):
@@ -61,6 +61,19 @@ TOLERANCE_CONFIGS = {
 # "tight" identifies multi-machine cases (at ode45's tolerances the integration error biases the 2n
 # estimates) and, setting only the swept tolerances, is a point of the default config's sweep.
 TOLERANCE_MARKS = {"tight": frozenset({IDENTIFIES_NETWORKS, SWEEP_POINT})}
+
+
+def which_p1(P1: np.ndarray) -> str:
+    """The trajectories a failed integration of the batch `P1` (p.u.) was for, for its error:
+    "P1=0.13" for one, "one of P1 in [0.08, 0.18]" for several."""
+    return f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
+
+
+def at_query_times(run: Callable[[np.ndarray], np.ndarray], t: np.ndarray) -> np.ndarray:
+    """`run(times)` on the sorted unique query times t (s), its time axis (the second) then put back
+    in the order of t, repeats included: integrators step forward through sorted output times."""
+    times, order = np.unique(t, return_inverse=True)
+    return run(times)[:, order]
 
 
 def run_batch(run: Callable[[np.ndarray], T], P1: np.ndarray) -> T:

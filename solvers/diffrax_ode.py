@@ -18,6 +18,7 @@ from solvers.classical import (
     TOLERANCE_MARKS,
     ObservationLayout,
     ToleranceOptions,
+    at_query_times,
     check_step,
     identify_least_squares,
     search_boxes,
@@ -267,8 +268,7 @@ class DiffraxODE(AbstractSolver):
         if t.size == 1 or np.all(t[1:] > t[:-1]):
             y = self._run(t, P1)
         else:
-            times, order = np.unique(t, return_inverse=True)
-            y = self._run(times, P1)[:, order]
+            y = at_query_times(lambda times: self._run(times, P1), t)
         n = self.case.n
         return y[..., :n], y[..., n:]
 

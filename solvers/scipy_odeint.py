@@ -12,8 +12,10 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ToleranceOptions,
+    at_query_times,
     identify_by_simulation,
     run_batch,
+    which_p1,
 )
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
@@ -67,16 +69,16 @@ class ScipyOdeint(AbstractSolver):
                 tfirst=True, full_output=True, mxstep=100000, ml=2 * n - 1, mu=2 * n - 1,
             )
             if info["message"] != "Integration successful.":
-                where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
-                raise SolveError(f"{self.name}: integration failed at {where}: {info['message']}")
+                raise SolveError(f"{self.name}: integration failed at {which_p1(P1)}: {info['message']}")
             y = y[grid.size - t.size:]  # drop the prepended t = 0
         y = y.reshape(t.size, P1.size, 2 * n).transpose(1, 0, 2)  # (n_p, n_t, 2n)
         return y[..., :n], y[..., n:]
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        times, order = np.unique(t, return_inverse=True)
-        delta, omega = run_batch(lambda p1: self._integrate(self.case, times, p1), P1)
-        return delta[:, order], omega[:, order]
+        y = at_query_times(lambda times: np.concatenate(
+            run_batch(lambda p1: self._integrate(self.case, times, p1), P1), axis=-1), t)
+        n = self.case.n
+        return y[..., :n], y[..., n:]
 
     def _identify(self, obs: Observations) -> Estimate:
         return identify_by_simulation(self._integrate, self.case, obs, self.options)

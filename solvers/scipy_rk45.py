@@ -8,7 +8,14 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from solvers.base import AbstractSolver, Estimate, SolveError
-from solvers.classical import TOLERANCE_CONFIGS, TOLERANCE_MARKS, ToleranceOptions, identify_by_simulation
+from solvers.classical import (
+    TOLERANCE_CONFIGS,
+    TOLERANCE_MARKS,
+    ToleranceOptions,
+    at_query_times,
+    identify_by_simulation,
+    which_p1,
+)
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 
@@ -71,20 +78,20 @@ class ScipyRK45(AbstractSolver):
                 rtol=self.options["rtol"], atol=self.options["atol"], args=args,
             )
             if not sol.success:
-                where = f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
-                raise SolveError(f"{self.name}: integration failed at {where}: {sol.message}")
+                raise SolveError(f"{self.name}: integration failed at {which_p1(P1)}: {sol.message}")
             return sol.y
 
         return stacked_states(integrate, case, t, P1, y0)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        times, order = np.unique(t, return_inverse=True)
-        if self.options["batch"] == "stacked":
-            delta, omega = self._integrate(self.case, times, P1)
-        else:
-            parts = [self._integrate(self.case, times, P1[i:i + 1]) for i in range(P1.size)]
-            delta, omega = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-        return delta[:, order], omega[:, order]
+        def states(times: np.ndarray) -> np.ndarray:  # (n_p, n_t, 2n)
+            if self.options["batch"] == "stacked":
+                return np.concatenate(self._integrate(self.case, times, P1), axis=-1)
+            return np.concatenate([np.concatenate(self._integrate(self.case, times, P1[i:i + 1]), axis=-1)
+                                   for i in range(P1.size)])
+
+        y, n = at_query_times(states, t), self.case.n
+        return y[..., :n], y[..., n:]
 
     def _identify(self, obs: Observations) -> Estimate:
         return identify_by_simulation(self._integrate, self.case, obs, self.options)
