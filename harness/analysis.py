@@ -71,10 +71,12 @@ def identification_data(df: pd.DataFrame) -> pd.Series:
 
 
 def trained(df: pd.DataFrame) -> pd.Series:
-    """Rows of adapters that train (the rows' `trains`, as the adapter declares it; rows without
-    it, of an adapter that is not installed or of runs before the column: none)."""
+    """Rows of adapters that train (the rows' `trains`, as the adapter declares it). Runs before the
+    column recorded a training seed >= 0 for exactly these adapters and -1 for the others, so their
+    rows are read by that rule; a row without the declaration in a run that has the column (an
+    adapter that is not installed) does not train."""
     if "trains" not in df:
-        return pd.Series(False, index=df.index)
+        return df["seed"].fillna(-1).astype(int) >= 0 if "seed" in df else pd.Series(False, index=df.index)
     return df["trains"].eq(True)  # NaN (no declaration) is not True
 
 

@@ -526,3 +526,14 @@ def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
     older = {**unit, "solver": "b", "case": "x"}
     assert "(only 2 of its 3 units recorded it" in work_minutes([*rows, older])
     assert work_minutes([older]) == ""
+
+
+def test_rows_of_runs_before_the_trains_column_are_read_by_their_seeds():
+    """Runs before rows declared `trains` gave trained adapters seeds >= 0 and the others -1: their
+    tables (results/full-identification) must read as they did."""
+    from harness.analysis import trained
+
+    old = pd.DataFrame({"solver": ["jax-pinn", "numba-rk"], "seed": [0, -1]})
+    assert trained(old).tolist() == [True, False]
+    new = pd.DataFrame({"solver": ["jax-pinn", "numba-rk", "gone"], "seed": [0, -1, 0], "trains": [True, False, None]})
+    assert trained(new).tolist() == [True, False, False]
