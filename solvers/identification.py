@@ -130,12 +130,13 @@ def linearised_covariance(J: np.ndarray, r: np.ndarray, n_data: int, k: int, rco
     singular values below rcond x the largest dropped).
 
     s^2, the noise variance, from the leave-one-out residuals r_i / (1 - h_i) (h = diag of the data's
-    hat matrix J_d H^+ J_d^T, the row norms of U_d): a network with as many weights as samples
-    nearly interpolates the noise (measured on the SMIB at 1 % noise: h summed to 94 of 100, the
-    in-sample residual 13x smaller than the noise, and ||r_d||^2 / (n - sum h) still 3-5x too
-    small), which the residual of each sample left out does not hide; it is >= the noise on
-    average (it adds the fit's own variance at the sample), so the interval errs wide. Samples
-    the fit interpolates exactly (1 - h_i < 1e-8) tell nothing of the noise and are left out.
+    hat matrix J_d H^+ J_d^T, the row norms of U_d): a network with about as many weights as
+    samples nearly interpolates the noise, further than its linearisation says (so even
+    ||r_d||^2 / (n - sum h) is too small), which the residual of each sample left out does not
+    hide; it adds the fit's own variance at the sample, so the interval errs wide (coverage
+    measured by `swingbench run --suite identification --noise-draws 20`, docs/methods.md).
+    Samples the fit interpolates exactly (1 - h_i < 1e-8) tell nothing of the noise and are
+    left out.
     dof = samples used - k; condition = cond(cov); cov is NaN when dof < 1."""
     J, r = np.asarray(J, np.float64), np.asarray(r, np.float64)
     U, S, Vt = np.linalg.svd(J, full_matrices=False)
