@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from harness import sweep  # imports only the standard library until a sweep runs
+from harness import compare, sweep  # import only the standard library until they run
 from harness.cli_options import add_shared_options, progress_setting
 from harness.usage import UsageError
 
@@ -112,6 +112,7 @@ def _parser() -> argparse.ArgumentParser:
                              "pages, --docs)")
     report.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
     sweep.add_parser(sub)
+    compare.add_parser(sub)
     return parser
 
 
@@ -291,7 +292,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     args.argv = argv  # for metadata and the command that resumes
     try:
-        return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep}[args.command](args)
+        return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep,
+                "compare": compare.cmd_compare}[args.command](args)
     except UsageError as exc:  # one line, no traceback; the interpreter exits with its code and prints nothing
         print(exc, file=sys.stderr)
         raise

@@ -15,14 +15,23 @@ import os
 import sys
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 from harness.store import atomic_write
 from harness.versions import library_versions
 from solvers import plugin_distribution
 from solvers.base import AbstractSolver, FitReport
 
-__all__ = ["CACHE_FORMAT", "TRAINING_LIBRARIES", "Persistable", "cache_key", "code_version", "load_cached",
-           "store_cached"]
+__all__ = [
+    "CACHE_FORMAT",
+    "TRAINING_LIBRARIES",
+    "Persistable",
+    "cache_key",
+    "code_version",
+    "fit_or_load",
+    "load_cached",
+    "store_cached",
+]
 
 _ROOT = Path(__file__).resolve().parents[1]
 
@@ -192,3 +201,21 @@ def store_cached(solver: AbstractSolver, report: FitReport, cache_dir: Path) -> 
               "files": {path.name: _sha256(path) for path in _model_files(base)},
               "report": report._asdict()}
     atomic_write(fit, json.dumps(record, indent=1))
+
+
+def fit_or_load(solver: AbstractSolver, settings: Any) -> FitReport:
+    """`fit()`, or load the trained model from the cache (with the training cost it had; a cache
+    entry that fails its checks is moved aside and the model trained again, see
+    `harness.model_cache.load_cached`)."""
+    cacheable = Persistable(solver) and settings.cache_dir is not None
+    if cacheable and not settings.retrain:
+        report = load_cached(solver, settings.cache_dir)
+        if report is not None:
+            return report._replace(message=f"{report.message} (cached model)".strip())
+    report = solver.fit()
+    if cacheable and math.isfinite(report.loss):  # a diverged model is not kept for the next run
+        try:
+            store_cached(solver, report, settings.cache_dir)
+        except OSError as exc:  # a full or read-only disk costs the cache, not the measurement
+            print(f"[swingbench] model cache: cannot store in {settings.cache_dir}: {exc}", file=sys.stderr)
+    return report

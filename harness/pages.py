@@ -14,7 +14,7 @@ import shutil
 from pathlib import Path
 
 from harness.labels import Labels
-from harness.plots import PLOTS, SCALING_PLOTS
+from harness.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
 from harness.sections import (
     case_sections,
     header,
@@ -26,6 +26,7 @@ from harness.sections import (
 )
 from harness.store import atomic_write
 from harness.tables import build_tables
+from harness.verdict_table import RULE, headline_table
 
 __all__ = ["GENERATED", "readme_block", "write_pages"]
 
@@ -44,6 +45,11 @@ def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: 
     frames = suite_frames(rows)
     prefix = f"{pages.rstrip('/')}/" if pages else ""
     out = [header(meta) + work_minutes(rows)]
+    head = headline_table(frames)
+    if head is not None:
+        out.append(f"{level} Verdicts at matched accuracy\n\n{RULE} Every query: the case pages.\n\n"
+                   f"{Labels(frames).table(head).to_markdown(index=False)}\n\n"
+                   f"![verdicts]({prefix}figures/verdicts.png)\n\n")
     for name, own in case_sections(frames):
         out.append(f"{level} [{name}]({prefix}{name}.md)\n\n" + verdict_markdown(own, Labels(own), level=None))
     if scaling_markdown(frames):
@@ -75,7 +81,7 @@ def write_pages(rows: list[dict], meta: dict, pages: Path, results: Path) -> lis
         if old.read_text(encoding="utf-8").startswith(GENERATED):
             old.unlink()
     for old in figures_dir.glob("*.png"):
-        if old.stem.split("-", 1)[0] in (*PLOTS, *SCALING_PLOTS):
+        if old.stem.split("-", 1)[0] in (*PLOTS, *SCALING_PLOTS, *VERDICT_PLOTS):
             old.unlink()
     frames = suite_frames(rows)
     sections = case_sections(frames)
@@ -100,5 +106,7 @@ def write_pages(rows: list[dict], meta: dict, pages: Path, results: Path) -> lis
         title, rest = scaling.strip("\n").split("\n\n", 1)
         page("scaling", f"{title.replace('# Scaling', '# Results: scaling')}\n\n{run}{rest}\n",
              _figures(results, "", SCALING_PLOTS))
+    for figure in _figures(results, "", VERDICT_PLOTS):  # shown by the verdict block itself
+        shutil.copyfile(results / f"{figure}.png", figures_dir / f"{figure}.png")
     page("index", f"# Results\n\n{verdict_block(rows, meta, '', _source(results), level='##')}", [])
     return written

@@ -164,15 +164,22 @@ def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
 
 
 def _budgeted(spec: SolverSpec, case: Case, settings: Settings) -> SolverSpec:
-    """`spec` with the wall-clock training budget `settings.network_pinn_seconds` gives `case`
-    (options `max_seconds` and `id_max_seconds`, so the budget shows in the row's variant), for
-    adapters that train and specs that set no `max_seconds` of their own; otherwise `spec`."""
-    seconds = settings.network_pinn_seconds.get(case.name)
+    """`spec` with the training budget `settings.network_pinn_options` gives `case` (iterations
+    per window, so that a seed gives the same network on any machine; the options show in the
+    row's variant), for adapters that train, each option the adapter has and the spec does not
+    set itself; otherwise `spec`."""
+    budget = settings.network_pinn_options.get(case.name)
     cls = solver_class(spec.solver)
-    if seconds is None or cls is None or not cls.trains or "max_seconds" in dict(spec.options):
+    if not budget or cls is None or not cls.trains:
         return spec
-    budget = [(key, float(seconds)) for key in ("max_seconds", "id_max_seconds") if key in cls.OPTIONS]
-    return replace(spec, options=tuple(sorted((*spec.options, *budget))))
+    own = dict(spec.options)
+    extra = [(key, value) for key, value in budget.items() if key in cls.OPTIONS and key not in own]
+    return replace(spec, options=tuple(sorted((*spec.options, *extra)))) if extra else spec
+
+
+def _verdict_pinns(settings: Settings) -> str:
+    return "; ".join(f"{solver} {' or '.join(configs)} with {', '.join(f'{k}={v}' for k, v in options) or 'any options'}"
+                     for solver, configs, options in settings.verdict_pinns)
 
 
 def _network_identifiers(specs: list[SolverSpec]) -> list[str]:
@@ -213,6 +220,8 @@ def plan(specs: list[SolverSpec], cases: list[Case], suites: list[Suite], settin
             chosen, skipped = [], []
             for suite in group:
                 reason = _repeats(spec, cls, suite, first)
+                if reason is None and suite.verdicts and not settings.verdict_pinn(spec):
+                    reason = f"skipped: {suite.name} measures the run's verdict PINNs only ({_verdict_pinns(settings)})"
                 if reason is not None:
                     not_run.append(Skip(case, budgeted, suite.name, reason))
                     continue

@@ -16,9 +16,10 @@ from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
 from harness.labels import Labels
+from harness.verdict_table import headline_query, verdicts
 from systems.cases import CASES, standard_grid
 
-__all__ = ["PLOTS", "SCALING_PLOTS", "make_plots"]
+__all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
 
 
 def _palette(labels) -> dict:
@@ -240,6 +241,39 @@ PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1"
 
 
 SCALING_PLOTS = {"scaling_cost": scaling_cost_plot, "scaling_accuracy": scaling_accuracy_plot}
+
+
+def verdict_plot(frames: dict, names: Labels):
+    """The headline verdicts as a heat map: log10 of the ratio rival / PINN (worst seed; blue:
+    the PINN faster, red: classical), case and PINN by row, query by column, each cell's label and
+    ratio written in it; ties hatched."""
+    v = verdicts(frames)
+    if v.empty:
+        return None
+    v = v[v["query"].map(headline_query)]
+    if v.empty:
+        return None
+    rows = list(dict.fromkeys(zip(v["case"], v["pinn"])))
+    cols = list(dict.fromkeys(v["query"]))
+    grid = np.full((len(rows), len(cols)), np.nan)
+    fig, ax = plt.subplots(figsize=(1.9 * len(cols) + 3, 0.6 * len(rows) + 1.5))
+    for _, r in v.iterrows():
+        i, j = rows.index((r["case"], r["pinn"])), cols.index(r["query"])
+        grid[i, j] = np.log10(r["ratio"]) if r["ratio"] > 0 else np.nan
+        text = "no rival" if np.isnan(r["ratio"]) else f"{r['ratio']:.2g}x\n{r['verdict']}"
+        ax.text(j, i, text, ha="center", va="center", fontsize=7)
+        if r["verdict"] == "tie":
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="///", lw=0))
+    bound = max(1.0, float(np.nanmax(np.abs(grid)))) if np.isfinite(grid).any() else 1.0
+    image = ax.imshow(grid, cmap="RdBu", vmin=-bound, vmax=bound, aspect="auto")
+    ax.set_xticks(range(len(cols)), [c.replace(", one call", "") for c in cols], rotation=20, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}" for case, pinn in rows], fontsize=8)
+    fig.colorbar(image, ax=ax, label="log10(rival time / PINN time)")
+    ax.set_title("Verdicts at matched accuracy (worst seed; hatched: tie)")
+    return fig
+
+
+VERDICT_PLOTS = {"verdicts": verdict_plot}
 
 
 def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "", names: dict | None = None,

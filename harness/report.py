@@ -56,13 +56,14 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
     figures = []
     if plots:
-        from harness.plots import PLOTS, make_plots
+        from harness.plots import PLOTS, VERDICT_PLOTS, make_plots
 
-        _remove_old_plots(out_dir, (*PLOTS, *SCALING_PLOTS))
+        _remove_old_plots(out_dir, (*PLOTS, *SCALING_PLOTS, *VERDICT_PLOTS))
         for name, own, _ in sections:
             figures += make_plots(own, out_dir, suffix=f"-{name}" if len(sections) > 1 else "")
         figures += make_plots({"scaling_frame": scaling_frame(frames)}, out_dir, names=SCALING_PLOTS,
                               labels=scaling_labels(frames))
+        figures += make_plots(frames, out_dir, names=VERDICT_PLOTS)
     atomic_write(out_dir / "README.md", _results_readme(meta, frames, markdown, figures))
     return markdown
 

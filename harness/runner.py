@@ -14,7 +14,6 @@ says afterwards, in one line, which units failed, and gives the command's exit s
 from __future__ import annotations
 
 import json
-import math
 import os
 import shlex
 import socket
@@ -28,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.isolation import OverLimit, call_isolated
-from harness.model_cache import Persistable, load_cached, store_cached
+from harness.model_cache import fit_or_load
 from harness.plan import FIT, Unit, plan
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents
@@ -36,7 +35,6 @@ from harness.suites import SUITES
 from harness.timing import blas_threads, pinned_threads
 from harness.usage import EXIT_FAILED, UsageError
 from solvers import UNAVAILABLE, solver_class
-from solvers.base import AbstractSolver, FitReport
 from solvers.progress import progress_enabled
 from systems.cases import Case
 
@@ -61,24 +59,6 @@ def check_units(units: Iterable[Unit], settings: Settings,
             unit.make(settings)
         except (ValueError, TypeError) as exc:  # TypeError: an adapter's rule meeting a value of the wrong type
             raise ValueError(f"{describe(unit)}: {exc}") from None
-
-
-def fit_or_load(solver: AbstractSolver, settings: Settings) -> FitReport:
-    """`fit()`, or load the trained model from the cache (with the training cost it had; a cache
-    entry that fails its checks is moved aside and the model trained again, see
-    `harness.model_cache.load_cached`)."""
-    cacheable = Persistable(solver) and settings.cache_dir is not None
-    if cacheable and not settings.retrain:
-        report = load_cached(solver, settings.cache_dir)
-        if report is not None:
-            return report._replace(message=f"{report.message} (cached model)".strip())
-    report = solver.fit()
-    if cacheable and math.isfinite(report.loss):  # a diverged model is not kept for the next run
-        try:
-            store_cached(solver, report, settings.cache_dir)
-        except OSError as exc:  # a full or read-only disk costs the cache, not the measurement
-            print(f"[swingbench] model cache: cannot store in {settings.cache_dir}: {exc}", file=sys.stderr)
-    return report
 
 
 def _failure(exc: BaseException) -> str:

@@ -87,8 +87,14 @@ class Settings:
     networks (`IDENTIFIES_NETWORKS`: at ode45's tolerances a classical identification there is both
     slow, minutes with 2n unknowns, and biased by the integration error: 10-14 % on wscc9,
     measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
-    took 520 s on wscc9, measured); `network_pinn_seconds` gives a case's PINN fits a wall-clock
-    budget (`harness.plan`). `unit_limits` (None: none) runs each unit in a fresh process under a
+    took 520 s on wscc9, measured); `network_pinn_options` gives a case's PINN fits their budget
+    (iterations per window, `harness.plan`). The verdict suite (`harness.suites.verdict`) measures
+    the PINNs of `verdict_pinns` ((adapter, configs, options its spec has), e.g. the JAX PINN with
+    its compiled query path), each trained from `verdict_seeds`, against their rivals matched on
+    the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
+    than it needs to be; a fixed-step adapter sweeps its own steps), in
+    `verdict_rounds` rounds of `verdict_pairs` interleaved pairs of samples; a seed whose error in
+    the angles (relative L2) is not finite or exceeds `verdict_gate` counts as a loss. `unit_limits` (None: none) runs each unit in a fresh process under a
     wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
     `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
     of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`). Which
@@ -105,6 +111,7 @@ class Settings:
     throughput_sizes: tuple[int, ...] = (1, 10, 100, 1000, 10000)
     t1_values_s: tuple[float, ...] = (1.0, 2.0, 5.0, 10.0, 20.0)
     points_batch: int = 10000
+    points_distinct_p1: int = 100
     pairs: tuple[tuple[float, float], ...] = (PAPER_PAIR, *IDENTIFICATION_PAIRS)
     noise_levels: tuple[float, ...] = (0.0, 0.01)
     noise_draws: int = 1
@@ -116,7 +123,7 @@ class Settings:
     cache_dir: Path | None = Path(".cache/models")
     retrain: bool = False
     cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES)
-    network_pinn_seconds: dict[str, float] = field(default_factory=dict)
+    network_pinn_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     network_noise_levels: tuple[float, ...] = (0.0,)
     network_identify_cases: tuple[str, ...] = NETWORK_CASES
     unit_limits: Limits | None = None
@@ -125,6 +132,20 @@ class Settings:
     scaling_n_t: int = 101
     scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
     scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
+    verdict_pinns: tuple[tuple[str, tuple[str, ...], tuple[tuple[str, Any], ...]], ...] = (
+        ("jax-pinn", ("default", "marching"), (("query", "numba"),)),)
+    verdict_rtols: tuple[float, ...] = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8, 1e-9, 1e-10)
+    verdict_seeds: tuple[int, ...] = (0, 1, 2)
+    verdict_rounds: int = 2
+    verdict_pairs: int = 4
+    verdict_gate: float = 1e-2
+
+    def verdict_pinn(self, spec: SolverSpec) -> bool:
+        """Whether the verdict suite measures `spec`: its adapter and config are those of an entry
+        of `verdict_pinns` and its options include that entry's."""
+        options = dict(spec.options)
+        return any(spec.solver == solver and spec.config in configs and all(options.get(k) == v for k, v in wanted)
+                   for solver, configs, wanted in self.verdict_pinns)
 
     def sweep_rtols(self, compiled: bool, case: Case) -> tuple[float, ...]:
         """The tolerances of a work-precision sweep of an adapter (`compiled` or not) on `case`."""
@@ -136,7 +157,7 @@ class Settings:
         """These settings for a run of the scaling suite alone: each unit under
         `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds), and
         the configs made for large systems (`LARGE_SYSTEMS`) not omitted."""
-        return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_seconds={},
+        return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_options={},
                        pinn_options={**self.pinn_options, **self.scaling_pinn_options},
                        omit_marks=tuple(m for m in self.omit_marks if m != LARGE_SYSTEMS))
 
@@ -148,7 +169,8 @@ class Settings:
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, max_query_s=5.0, seeds=(0,),
     pinn_options={"max_iterations": 150, "id_max_iterations": 150, "max_seconds": 60.0}, throughput_sizes=(1, 100),
-    t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"),
+    t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"), verdict_seeds=(0,),
+    verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
 # make bench: every suite on the SMIB and the three multi-machine cases within about an hour on 2
@@ -174,7 +196,8 @@ DEFAULT = Settings(
     pairs=(PAPER_PAIR,),
     skip_identify_marks=(ABLATION,),
     network_wp_rtols=(1e-3, 1e-6, 1e-9),
-    network_pinn_seconds={"wscc9": 60.0, "kundur4": 60.0, "ieee39": 120.0},
+    network_pinn_options={case: {"max_iterations": iterations, "max_seconds": None, "id_max_iterations": 600}
+                          for case, iterations in (("wscc9", 100), ("kundur4", 100), ("ieee39", 60))},
     network_identify_cases=("wscc9",),
 )
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0,

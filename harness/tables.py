@@ -26,6 +26,7 @@ from harness.analysis import (
 )
 from harness.paper import paper_table
 from harness.verdict import ladder_table
+from harness.verdict_table import RULE, verdict_table
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from systems.reference import OFF_TRAINING
 
@@ -218,6 +219,7 @@ def _smib_paper_table(frames: dict) -> pd.DataFrame | None:
 
 
 TABLES = {
+    "verdicts": (f"Verdicts at matched accuracy, every query. {RULE}", verdict_table),
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
                "error, fit time and query time of one model)"), _smib_paper_table),
     "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "

@@ -45,7 +45,8 @@ def with_exploding(monkeypatch):
 def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_path, with_exploding):
     store = RowStore(tmp_path)
     specs = [SolverSpec("exploding"), SolverSpec("not-installed"), SolverSpec("casadi-cvodes")]
-    settings = replace(QUICK, cache_dir=None, throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=50)
+    settings = replace(QUICK, cache_dir=None, throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=50,
+                       points_distinct_p1=5)
     run_suites(specs, [SMIB_INFERENCE], ["accuracy", "latency"], settings, store, progress=False)
     df = store.frame()
     status = df.groupby(["solver", "suite"])["status"].first()
@@ -59,7 +60,8 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert accuracy.loc[("delta", "paper ode45 data"), "max_abs"] < 1e-2
     latency = ok[ok.suite == "latency"]
     assert set(latency["query"]) == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s",
-                                     "50 single points, one call"}
+                                     "50 single points, one call", "50 single points over 5 P1, one call"}
+    assert dict(zip(latency["query"], latency["distinct_p1"]))["50 single points over 5 P1, one call"] == 5
     assert (latency["median_s"] > 0).all()
     # every row of a unit of work carries that unit's wall time, at least what its queries took
     timed = ok.groupby("suite")["work_s"]
@@ -440,15 +442,30 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     from systems.cases import CASES
     from systems.cases import SMIB_INFERENCE as forward
 
-    settings = replace(DEFAULT, seeds=(0,), network_pinn_seconds={"wscc9": 90.0})
+    settings = replace(DEFAULT, seeds=(0,), network_pinn_options={"wscc9": {"max_iterations": 90, "max_seconds": None}})
     specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
     units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings).units
-    budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_seconds") for u in units}
-    assert budget[("wscc9", "jax-pinn", "marching")] == 90.0
+    budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_iterations") for u in units}
+    assert budget[("wscc9", "jax-pinn", "marching")] == 90
     assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
     assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
     assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {
-        "id_max_seconds=90.0,max_seconds=90.0", "id_max_seconds=90.0,max_seconds=90.0,query=numba"}
+        "max_iterations=90,max_seconds=None", "max_iterations=90,max_seconds=None,query=numba"}
+
+
+def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
+    from harness.plan import plan
+    from harness.runs import default_specs
+    from harness.suites import SUITES
+    from systems.cases import CASES, NETWORK_CASES
+
+    specs = default_specs(["jax-pinn", "torch-pinn"], settings=DEFAULT)
+    units = plan(specs, [CASES[name] for name in NETWORK_CASES], list(SUITES.values()), DEFAULT).units
+    assert units
+    for unit in units:
+        options = unit.spec.make(unit.case).options  # the config's own max_seconds included
+        assert options["max_seconds"] is None and options["id_max_seconds"] is None, unit.label
+        assert options["max_iterations"] == DEFAULT.network_pinn_options[unit.case.name]["max_iterations"]
 
 
 def test_work_precision_times_a_compiled_adapter_at_every_t1_once():

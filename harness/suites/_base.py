@@ -25,7 +25,11 @@ class Suite:
     default: bool = True  # run when the command line names no suite
     identifies: bool = False  # identifies m and d: the run's settings say with which configs, on which cases
     sweeps: bool = False  # sweeps each adapter's precision: a config that is a point of the sweep repeats it
+    trained_only: bool = False  # measures adapters that train only
+    verdicts: bool = False  # measures the run's verdict PINNs only (`Settings.verdict_pinn`)
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""
+        if self.trained_only:
+            return cls.trains
         return cls.does_work or self.interface

@@ -17,17 +17,23 @@ T1_S = 10.0  # the paper's single-time-point query (its 87x claim)
 POINTS_SEED = 2024  # the scattered single points: the same for every adapter
 
 
-def scattered_points(case: Case, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """`n` seeded random (t1 s, P1 p.u.) pairs, uniform on (0, t_final] x [p1_min, p1_max]."""
+def scattered_points(case: Case, n: int, distinct: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """`n` seeded random (t1 s, P1 p.u.) pairs, uniform on (0, t_final] x [p1_min, p1_max]; with
+    `distinct`, P1 drawn uniformly from that many values evenly spaced over [p1_min, p1_max] (the
+    same t1). Returns (t1, P1), each (n,)."""
     rng = np.random.default_rng(POINTS_SEED)
-    return case.t_final * (1.0 - rng.random(n)), rng.uniform(case.p1_min, case.p1_max, n)
+    t1, P1 = case.t_final * (1.0 - rng.random(n)), rng.uniform(case.p1_min, case.p1_max, n)
+    if distinct is not None:
+        P1 = np.linspace(case.p1_min, case.p1_max, distinct)[rng.integers(0, distinct, n)]
+    return t1, P1
 
 
 def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
     """(kind, name, t_query, P1): the 100 x 201 grid; `throughput_sizes` trajectories of 201 times
     (P1 evenly spaced over the case's range; the size of the grid is the grid); delta and omega at
     each t1 in `t1_values_s` within the horizon for the middle P1; and `points_batch` scattered single points
-    (`scattered_points`) answered by one `solve_points` call (kind "points batch")."""
+    (`scattered_points`) answered by one `solve_points` call (kind "points batch"), every P1
+    distinct, then (with `points_distinct_p1`) the same times over that many distinct P1 values."""
     t, P1 = standard_grid(case)
     mid = P1[P1.size // 2: P1.size // 2 + 1]
     out = [("grid", f"grid {P1.size}x{t.size}", t, P1)]
@@ -41,6 +47,10 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
     if settings.points_batch:
         t_points, p_points = scattered_points(case, settings.points_batch)
         out.append(("points batch", f"{settings.points_batch} single points, one call", t_points, p_points))
+        if settings.points_distinct_p1:
+            t_points, p_points = scattered_points(case, settings.points_batch, settings.points_distinct_p1)
+            out.append(("points batch", (f"{settings.points_batch} single points over {settings.points_distinct_p1} P1, "
+                                        "one call"), t_points, p_points))
     return out
 
 
@@ -69,6 +79,7 @@ def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     for kind, name, t, P1 in queries(case, settings):
         n = P1.size
         base = {"kind": kind, "query": name, "n_trajectories": n, "n_times": t.size if kind != "points batch" else 1,
+                "distinct_p1": int(np.unique(P1).size),
                 "t1_s": float(t[0]) if kind == "single point" else np.nan}
         estimate = _estimate(kind, n, timed)
         if estimate is not None and estimate > settings.max_query_s:

@@ -1,0 +1,94 @@
+"""Paired, interleaved timing of two calls and the verdict it supports: the ratio of their medians,
+its bootstrap 95 % interval and a label (one side faster, or a tie).
+
+The protocol of every timing that enters a verdict (`harness.suites.verdict`): preparation and
+compilation happen before (each call is made untimed first); the two calls are timed alternately
+(A B A B ..., the order swapped every other pair) so that a change in the machine's load hits
+both; a sample is the mean of `calls` back-to-back calls, `calls` chosen from the untimed call so
+that a sample lasts about `SAMPLE_S` (a call of microseconds is not timed alone); the samples of a
+verdict come from several rounds taken at different moments of the run.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NO_RIVAL", "PINN_FASTER", "SAMPLE_S", "TIE", "TIE_FACTOR", "calls_per_sample",
+           "interleaved", "ratio_interval", "verdict_label"]
+
+SAMPLE_S = 2e-3  # a sample lasts at least this long (s): fast calls are timed in blocks
+CONFIDENCE = 0.95
+# A side is called faster only when the whole 95 % interval of the ratio lies beyond this factor;
+# otherwise the verdict is a tie (between two runs on this machine a median moves by up to ~1.2x).
+TIE_FACTOR = 1.2
+PINN_FASTER, CLASSICAL_FASTER, TIE = "PINN faster", "classical faster", "tie"
+NO_RIVAL = "no rival"  # no sweep point as accurate as the PINN, or every such point out of time
+
+
+def calls_per_sample(first_call_s: float) -> int:
+    """How many back-to-back calls make one sample of a call that took `first_call_s` seconds
+    untimed: enough to last `SAMPLE_S`, at least 1."""
+    if not math.isfinite(first_call_s) or first_call_s <= 0:
+        return 1
+    return max(1, math.ceil(SAMPLE_S / first_call_s))
+
+
+def _sample(fn: Callable[[], Any], calls: int) -> float:
+    start = time.perf_counter()
+    for _ in range(calls):
+        fn()
+    return (time.perf_counter() - start) / calls
+
+
+def interleaved(a: Callable[[], Any], b: Callable[[], Any], pairs: int, calls_a: int = 1,
+                calls_b: int = 1) -> tuple[list[float], list[float]]:
+    """`pairs` samples (s per call) of each of `a` and `b`, taken alternately: a b, b a, a b, ...
+    (the order swapped every pair, so neither always runs right after the other). Each sample is
+    the mean over `calls_a` (`calls_b`) calls. Both are assumed warm (called before)."""
+    samples_a, samples_b = [], []
+    for i in range(pairs):
+        if i % 2 == 0:
+            samples_a.append(_sample(a, calls_a))
+            samples_b.append(_sample(b, calls_b))
+        else:
+            samples_b.append(_sample(b, calls_b))
+            samples_a.append(_sample(a, calls_a))
+    return samples_a, samples_b
+
+
+def _median_ratio(rival: np.ndarray, pinn: np.ndarray, axis: int = -1) -> np.ndarray:
+    return np.median(rival, axis=axis) / np.median(pinn, axis=axis)
+
+
+def ratio_interval(pinn_s, rival_s, seed: int = 0, resamples: int = 4999) -> tuple[float, float, float]:
+    """(ratio, low, high): the rival's median time over the PINN's (> 1: the PINN is faster) and
+    its `CONFIDENCE` interval by the percentile bootstrap over the paired samples
+    (`scipy.stats.bootstrap`, paired: a resample keeps the two samples of one moment together),
+    seeded so the same samples give the same interval. Needs >= 2 pairs of positive times."""
+    pinn, rival = np.asarray(pinn_s, float), np.asarray(rival_s, float)
+    if pinn.shape != rival.shape or pinn.ndim != 1 or pinn.size < 2:
+        raise ValueError(f"ratio_interval needs two equal 1-D samples of >= 2 times, got {pinn.shape}, {rival.shape}")
+    if not (np.all(pinn > 0) and np.all(rival > 0)):
+        raise ValueError("ratio_interval needs positive times")
+    ratio = float(_median_ratio(rival, pinn))
+    if np.ptp(pinn) == 0 and np.ptp(rival) == 0:  # no spread: the bootstrap has nothing to resample
+        return ratio, ratio, ratio
+    res = stats.bootstrap((rival, pinn), _median_ratio, paired=True, vectorized=True, n_resamples=resamples,
+                          confidence_level=CONFIDENCE, method="percentile", rng=np.random.default_rng(seed))
+    return ratio, float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def verdict_label(low: float, high: float) -> str:
+    """`PINN_FASTER` when the whole interval of the ratio (rival / PINN) lies above `TIE_FACTOR`,
+    `CLASSICAL_FASTER` when it lies below 1 / `TIE_FACTOR`, else `TIE`."""
+    if low > TIE_FACTOR:
+        return PINN_FASTER
+    if high < 1.0 / TIE_FACTOR:
+        return CLASSICAL_FASTER
+    return TIE

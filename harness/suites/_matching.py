@@ -1,0 +1,236 @@
+"""What a verdict compares: its queries, the accuracy of either side on one query, and the PINN's
+rival on it, the fastest point of a compiled classical adapter's precision sweep that is at least
+as accurate as the PINN in both the angles and the speeds.
+
+Accuracy on a query (`query_errors`): relative L2 against the reference (`systems.reference`) of
+the angles relative to the system's reference (the infinite bus, else the centre of inertia) and
+of the speeds, at the points the query asks, the larger of that and the same on a grid away from
+a PINN's training points (`OFF_TRAINING_P1` of the accuracy suite's off-training grid). A query of
+many trajectories is checked on `CHECK_TRAJECTORIES` of them (evenly chosen, both ends), a batch of
+points on its first `CHECK_POINTS`, a single point at t1 on its trajectory up to t1 (the standard
+times <= t1): a single number at one time can be near zero and is no measure.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from harness import metrics
+from harness.runs import Settings
+from harness.suites.accuracy import off_training_grid
+from harness.suites.latency import queries
+from solvers import SOLVERS
+from solvers.base import SWEEP_POINT, AbstractSolver
+from systems.cases import Case, standard_grid
+from systems.model import relative_angles
+from systems.reference import reference
+
+__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "Candidate", "Query", "Rivals", "off_training_errors", "query_errors", "verdict_queries"]
+
+CHECK_TRAJECTORIES = 100
+CHECK_POINTS = 100
+SLOW_S = 0.5  # a candidate whose first call took longer is ranked by one warm call
+OFF_TRAINING_P1 = 10  # P1 values of the off-training grid the accuracy is checked on (every ~10th)
+
+
+@dataclass(frozen=True)
+class Query:
+    """One query of the verdicts: the latency suite's `kind` and `name`, its times t (s) and P1
+    (p.u.): a grid of len(P1) trajectories at len(t) times, or (kind "points batch") the pairs
+    (t[i], P1[i]), with `distinct_p1` distinct P1 values among them."""
+
+    kind: str
+    name: str
+    t: np.ndarray
+    P1: np.ndarray
+
+    @property
+    def points(self) -> bool:
+        return self.kind == "points batch"
+
+    @property
+    def distinct_p1(self) -> int:
+        return int(np.unique(self.P1).size)
+
+    def call(self, solver: AbstractSolver) -> Callable[[], Any]:
+        """The timed call: `solver.solve(t, P1)`, or `solve_points(t, P1)` for a batch of points."""
+        if self.points:
+            return lambda: solver.solve_points(self.t, self.P1)
+        return lambda: solver.solve(self.t, self.P1)
+
+    def check(self, case: Case) -> tuple[np.ndarray, np.ndarray]:
+        """(t, P1) of the points its accuracy is measured at (see the module's docstring)."""
+        if self.points:
+            return self.t[:CHECK_POINTS], self.P1[:CHECK_POINTS]
+        if self.kind == "single point":
+            t_std, _ = standard_grid(case)
+            return t_std[t_std <= self.t[0]], self.P1
+        keep = np.unique(np.linspace(0, self.P1.size - 1, min(self.P1.size, CHECK_TRAJECTORIES)).round().astype(int))
+        return self.t, self.P1[keep]
+
+
+def verdict_queries(case: Case, settings: Settings) -> list[Query]:
+    """The latency suite's queries of `case` under `settings` (`harness.suites.latency.queries`)."""
+    return [Query(kind, name, t, P1) for kind, name, t, P1 in queries(case, settings)]
+
+
+def _points_reference(case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference at the pairs (t[i], P1[i]): one trajectory per distinct P1. Each (len(t), n)."""
+    delta, omega = np.empty((t.size, case.n)), np.empty((t.size, case.n))
+    for p1 in np.unique(P1):
+        at = np.flatnonzero(P1 == p1)
+        d, o = reference(case, t[at], np.array([p1]))
+        delta[at], omega[at] = d[0], o[0]
+    return delta, omega
+
+
+def _errors(case: Case, delta, omega, ref_delta, ref_omega) -> tuple[float, float]:
+    return (metrics.rel_l2(relative_angles(case, delta), relative_angles(case, ref_delta)),
+            metrics.rel_l2(omega, ref_omega))
+
+
+def off_training_errors(solver: AbstractSolver, case: Case) -> tuple[float, float]:
+    """(angles, speeds): relative L2 errors of `solver` on the off-training check grid (every
+    ~10th P1 of the accuracy suite's grid away from a PINN's training points)."""
+    t_off, p_off = off_training_grid(case)
+    p_off = p_off[np.linspace(0, p_off.size - 1, OFF_TRAINING_P1).round().astype(int)]
+    off = solver.solve(t_off, p_off)
+    return _errors(case, off.delta, off.omega, *reference(case, t_off, p_off))
+
+
+def query_errors(solver: AbstractSolver, case: Case, query: Query,
+                 off: tuple[float, float] | None = None) -> tuple[float, float]:
+    """(angles, speeds): relative L2 errors of `solver` on `query`, the larger of those at the
+    query's check points (`Query.check`) and `off` (default: `off_training_errors`)."""
+    t, P1 = query.check(case)
+    if query.points:
+        got = solver.solve_points(t, P1)
+        at_query = _errors(case, got.delta, got.omega, *_points_reference(case, t, P1))
+    else:
+        got = solver.solve(t, P1)
+        at_query = _errors(case, got.delta, got.omega, *reference(case, t, P1))
+    off = off_training_errors(solver, case) if off is None else off
+    return max(at_query[0], off[0]), max(at_query[1], off[1])
+
+
+@dataclass
+class Candidate:
+    """One point of a compiled classical adapter's precision sweep: `family` (adapter, config and
+    variant), `overrides` (its rtol, atol or dt), built and prepared on first use."""
+
+    family: tuple[str, str, tuple[tuple[str, Any], ...]]
+    overrides: dict[str, Any]
+    case: Case
+    threads: int
+    _solver: AbstractSolver | None = field(default=None, repr=False)
+
+    @property
+    def label(self) -> str:
+        solver, config, variant = self.family
+        extra = ", ".join([*(f"{k}={v}" for k, v in variant), *(f"{k}={v:g}" for k, v in self.overrides.items())])
+        return f"{solver} [{config}, {extra}]"
+
+    def solver(self) -> AbstractSolver:
+        if self._solver is None:
+            name, config, variant = self.family
+            cls = SOLVERS[name]
+            assert cls is not None
+            options = {**dict(variant), **self.overrides}
+            if cls.takes_threads and "threads" not in options:
+                options["threads"] = self.threads
+            self._solver = cls(self.case, config, **options)
+            self._solver.fit()
+        return self._solver
+
+    def accuracy_key(self) -> tuple:
+        """What its accuracy depends on: the family without options that only change how fast it
+        answers (`QUERY_OPTIONS`), and the overrides."""
+        name, config, variant = self.family
+        cls = SOLVERS[name]
+        kept = tuple((k, v) for k, v in variant if cls is None or k not in cls.QUERY_OPTIONS)
+        return name, config, kept, tuple(sorted(self.overrides.items()))
+
+
+def _families(case: Case, settings: Settings) -> list[tuple[str, str, tuple]]:
+    """Every compiled classical adapter (declared `compiled`, not `trains`) installed, in each
+    config made for `case` that is not a point of another config's sweep (`SWEEP_POINT`) nor
+    omitted by `settings.omit_marks`, plain and in each of its `VARIANTS`."""
+    out = []
+    for name, cls in SOLVERS.items():
+        if cls is None or not cls.compiled or cls.trains or not cls.does_work:
+            continue
+        for config in cls.CONFIGS:
+            marks = cls.marks(config)
+            if not cls.made_for(config, case.kind) or SWEEP_POINT in marks or marks & set(settings.omit_marks):
+                continue
+            out.extend((name, config, tuple(sorted(v.items()))) for v in ({}, *cls.VARIANTS))
+    return out
+
+
+class Rivals:
+    """The sweep points of every compiled classical family on `case` (`_families`; each family's
+    points `precision_sweep(settings.verdict_rtols)`, listed from the coarsest), their accuracy on each
+    query (measured once per point and query), and the rival of a PINN on a query (`best`)."""
+
+    def __init__(self, case: Case, settings: Settings) -> None:
+        self.case, self.settings = case, settings
+        self.sweeps: dict[tuple, list[Candidate]] = {}
+        for family in _families(case, settings):
+            proto = SOLVERS[family[0]](case, family[1], **dict(family[2]))
+            points = proto.precision_sweep(settings.verdict_rtols) or [{}]
+            self.sweeps[family] = [Candidate(family, p, case, settings.threads) for p in points]
+        self._errors: dict[tuple, tuple[float, float]] = {}
+        self._seconds: dict[tuple, float] = {}
+
+    def errors(self, candidate: Candidate, query: Query) -> tuple[float, float]:
+        key = (candidate.accuracy_key(), query.name)
+        if key not in self._errors:
+            off = self._errors.get((candidate.accuracy_key(), None))
+            if off is None:
+                off = self._errors[(candidate.accuracy_key(), None)] = off_training_errors(candidate.solver(), self.case)
+            self._errors[key] = query_errors(candidate.solver(), self.case, query, off)
+        return self._errors[key]
+
+    def first_call_s(self, candidate: Candidate, query: Query) -> float:
+        """Seconds of one warm call of `candidate` on `query`: after a first, untimed call (compiling
+        whatever the query's shapes need), the least of three calls, or one when the first took
+        over `SLOW_S`."""
+        key = (candidate.label, query.name)
+        if key not in self._seconds:
+            call = query.call(candidate.solver())
+            start = time.perf_counter()
+            call()
+            times = [time.perf_counter() - start]
+            for _ in range(1 if times[0] > SLOW_S else 3):
+                start = time.perf_counter()
+                call()
+                times.append(time.perf_counter() - start)
+            self._seconds[key] = min(times[1:])
+        return self._seconds[key]
+
+    def best(self, query: Query, delta: float, omega: float) -> tuple[Candidate | None, list[str]]:
+        """The rival on `query` of a PINN with errors (`delta`, `omega`): of each family the
+        coarsest sweep point at least as accurate in both (its cheapest, as a coarser point takes
+        fewer steps), the fastest of these by `first_call_s`; and notes on the families without
+        one (no point as accurate, or its call over `settings.max_query_s`: out of time)."""
+        picks, notes = [], []
+        for family, points in self.sweeps.items():
+            match = next((c for c in points if all(e <= need for e, need in zip(self.errors(c, query), (delta, omega)))),
+                         None)
+            if match is None:
+                notes.append(f"{points[0].label.split(' [')[0]} {family[1]}: no sweep point as accurate")
+                continue
+            seconds = self.first_call_s(match, query)
+            if seconds > self.settings.max_query_s:
+                notes.append(f"{match.label}: skipped, out of time ({seconds:.3g} s a call, over "
+                             f"{self.settings.max_query_s:g} s)")
+                continue
+            picks.append((seconds, match))
+        if not picks:
+            return None, notes
+        return min(picks, key=lambda p: p[0])[1], notes

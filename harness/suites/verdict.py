@@ -1,0 +1,131 @@
+"""Verdicts: each query of the latency suite, the PINN (trained from several seeds) against its
+matched rival, timed paired and interleaved, with the ratio's 95 % interval and a label.
+
+For every seed of `Settings.verdict_seeds` (the unit's adapter is the first; the others are
+trained here, or loaded from the model cache) and every query (`harness.suites._matching.verdict_queries`):
+the PINN's accuracy on that query (`harness.suites._matching.query_errors`, off its training points
+included) and its rival (`harness.suites._matching.Rivals.best`: the fastest point of a compiled classical
+adapter's precision sweep at least as accurate in the angles and the speeds). Then
+`Settings.verdict_rounds` rounds, each over every query and seed in turn, of
+`Settings.verdict_pairs` interleaved pairs of samples (`harness.paired.interleaved`): the samples
+of one verdict come from moments minutes apart. A seed whose errors are not finite or whose error
+in the angles exceeds `Settings.verdict_gate` counts as a loss (the label "classical faster", as MLPerf counts a run
+that missed its target), as does, with the label "no rival" and no ratio, a query where no sweep
+point is as accurate or every such point is out of time (the row's `rivals_note` says which).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from harness.model_cache import fit_or_load, load_cached
+from harness.paired import (
+    CLASSICAL_FASTER,
+    NO_RIVAL,
+    calls_per_sample,
+    interleaved,
+    ratio_interval,
+    verdict_label,
+)
+from harness.runs import Settings
+from harness.suites._base import Suite
+from harness.suites._matching import Query, Rivals, off_training_errors, query_errors, verdict_queries
+from solvers.base import AbstractSolver
+from systems.cases import Case
+
+__all__ = ["verdict"]
+
+_RIVALS: dict[tuple[str, int], Rivals] = {}  # one per case in a process: accuracies measured once
+
+
+def _rivals(case: Case, settings: Settings) -> Rivals:
+    key = (case.name, hash((settings.verdict_rtols, settings.omit_marks, settings.threads, settings.max_query_s)))
+    if key not in _RIVALS:
+        _RIVALS.clear()
+        _RIVALS[key] = Rivals(case, settings)
+    return _RIVALS[key]
+
+
+def _seeds(solver: AbstractSolver, settings: Settings) -> dict[int, tuple[AbstractSolver, float, int]]:
+    """seed -> (fitted adapter, training seconds, iterations): the unit's own, then each other
+    seed of `settings.verdict_seeds`, trained (or loaded from the model cache) here. The unit's own
+    seed's cost is read from the model cache (NaN and -1 without one: its fit row has it)."""
+    own = int(solver.options["seed"])
+    report = load_cached(solver, settings.cache_dir) if settings.cache_dir is not None else None  # its cost
+    out = {own: (solver, math.nan if report is None else report.seconds, -1 if report is None else report.iterations)}
+    for seed in settings.verdict_seeds:
+        if seed in out:
+            continue
+        other = type(solver)(solver.case, solver.config, **{**solver.options, "seed": seed})
+        report = fit_or_load(other, settings)
+        out[seed] = (other, report.seconds, report.iterations)
+    return out
+
+
+def _warm_calls(call: Callable[[], object]) -> int:
+    """Call `call` once, untimed (compiling what it needs), and return `calls_per_sample` of it."""
+    start = time.perf_counter()
+    call()
+    return calls_per_sample(time.perf_counter() - start)
+
+
+def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+    """One row per query and seed: the PINN's errors (angles, speeds), its rival and the rival's
+    errors, the paired samples (s per call) of both, their medians, the ratio rival / PINN with its
+    95 % interval, the label and the seed's training seconds and iterations."""
+    seeds = _seeds(solver, settings)
+    rivals = _rivals(case, settings)
+    plans: list[dict] = []
+    for query in verdict_queries(case, settings):
+        for seed, (pinn, fit_s, iterations) in seeds.items():
+            off = off_training_errors(pinn, case)
+            delta, omega = query_errors(pinn, case, query, off)
+            base = {"seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
+                    "distinct_p1": query.distinct_p1, "t1_s": float(query.t[0]) if query.kind == "single point"
+                    else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
+                    "fit_s": fit_s, "fit_iterations": iterations}
+            gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
+            rival, notes = rivals.best(query, delta, omega) if gate else (None, [])
+            plans.append({"base": base, "query": query, "pinn": pinn, "rival": rival, "notes": notes, "gate": gate,
+                          "samples": ([], [])})
+        print(f"[swingbench] verdict {case.name} {query.name}: rivals chosen", file=sys.stderr)
+    for plan in plans:
+        if plan["rival"] is not None:
+            pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(plan["rival"].solver())
+            plan["calls"] = (_warm_calls(pinn_call), _warm_calls(rival_call))
+    for _ in range(settings.verdict_rounds):
+        for plan in plans:
+            if plan["rival"] is None:
+                continue
+            query: Query = plan["query"]
+            a, b = interleaved(query.call(plan["pinn"]), query.call(plan["rival"].solver()), settings.verdict_pairs,
+                               *plan["calls"])
+            plan["samples"][0].extend(a)
+            plan["samples"][1].extend(b)
+    return [_row(plan, settings, rivals) for plan in plans]
+
+
+def _row(plan: dict, settings: Settings, rivals: Rivals) -> dict:
+    row = {**plan["base"], "rivals_note": "; ".join(plan["notes"]), "rounds": settings.verdict_rounds}
+    if not plan["gate"]:
+        return {**row, "label": CLASSICAL_FASTER, "rival": "", "gate": False,
+                "rivals_note": f"the PINN's angle error is over the gate {settings.verdict_gate:g}: counted as a loss"}
+    rival = plan["rival"]
+    if rival is None:
+        return {**row, "label": NO_RIVAL, "rival": "", "gate": True}
+    pinn_s, rival_s = plan["samples"]
+    ratio, low, high = ratio_interval(pinn_s, rival_s)
+    rival_delta, rival_omega = rivals.errors(rival, plan["query"])
+    return {**row, "gate": True, "rival": rival.label, "rival_rel_l2_delta": rival_delta,
+            "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
+            "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
+            "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(plan["calls"]),
+            "ratio": ratio, "ratio_low": low, "ratio_high": high, "label": verdict_label(low, high)}
+
+
+SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True)

@@ -1,0 +1,57 @@
+"""The timing protocol of verdicts: interleaved samples, the ratio's bootstrap interval, the label."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.paired import (
+    CLASSICAL_FASTER,
+    PINN_FASTER,
+    SAMPLE_S,
+    TIE,
+    TIE_FACTOR,
+    calls_per_sample,
+    interleaved,
+    ratio_interval,
+    verdict_label,
+)
+
+
+def test_interleaved_alternates_the_two_calls_and_swaps_their_order_every_pair():
+    order = []
+    a, b = interleaved(lambda: order.append("a"), lambda: order.append("b"), pairs=4, calls_a=2, calls_b=1)
+    assert len(a) == len(b) == 4 and all(s >= 0 for s in a + b)
+    assert order == ["a", "a", "b", "b", "a", "a", "a", "a", "b", "b", "a", "a"]
+
+
+def test_a_fast_call_is_timed_in_blocks_that_last_a_sample():
+    assert calls_per_sample(1.0) == 1
+    assert calls_per_sample(SAMPLE_S / 10) == 10
+    assert calls_per_sample(0.0) == 1 and calls_per_sample(float("nan")) == 1
+
+
+def test_the_interval_holds_the_ratio_of_medians_and_is_reproducible():
+    rng = np.random.default_rng(1)
+    pinn = 1e-3 * (1 + 0.05 * rng.standard_normal(8))
+    rival = 3e-3 * (1 + 0.05 * rng.standard_normal(8))
+    ratio, low, high = ratio_interval(pinn, rival)
+    assert ratio == pytest.approx(np.median(rival) / np.median(pinn))
+    assert low < ratio < high and 2.5 < low and high < 3.5
+    assert ratio_interval(pinn, rival) == (ratio, low, high)  # seeded: the same samples, the same interval
+
+
+def test_samples_without_spread_give_a_point_interval_and_bad_samples_are_refused():
+    assert ratio_interval([1.0, 1.0], [2.0, 2.0]) == (2.0, 2.0, 2.0)
+    with pytest.raises(ValueError, match="equal 1-D"):
+        ratio_interval([1.0, 2.0], [1.0])
+    with pytest.raises(ValueError, match="positive"):
+        ratio_interval([1.0, 0.0], [1.0, 1.0])
+
+
+@pytest.mark.parametrize(("low", "high", "expected"), [
+    (1.3, 2.0, PINN_FASTER), (0.3, 0.8, CLASSICAL_FASTER), (0.9, 1.5, TIE), (1.1, 1.4, TIE),
+    (TIE_FACTOR, 2.0, TIE), (0.5, 1 / TIE_FACTOR, TIE),
+])
+def test_a_side_wins_only_when_the_whole_interval_is_beyond_the_tie_factor(low, high, expected):
+    assert verdict_label(low, high) == expected

@@ -1,0 +1,110 @@
+"""The verdict suite: every query matched from a sweep, paired samples, intervals, labels, seeds."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from harness.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
+from harness.runs import QUICK
+from harness.suites import _matching
+from harness.suites._matching import Rivals, query_errors, verdict_queries
+from harness.suites.verdict import verdict
+from harness.verdict_table import compare_runs, verdicts
+from solvers import SOLVERS, make_solver
+from systems.cases import SMIB_INFERENCE as CASE
+from tests.conftest import require
+
+SETTINGS = replace(QUICK, cache_dir=None, verdict_seeds=(0, 1), verdict_rounds=2, verdict_pairs=4,
+                   throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=30, points_distinct_p1=5,
+                   verdict_rtols=(1e-2, 1e-4, 1e-6, 1e-8), verdict_gate=1.0)
+PINN = {"hidden_layers": 2, "width": 8, "n_f": 200, "max_iterations": 40, "query": "numba", "progress": False}
+
+
+@pytest.fixture(scope="module")
+def rows():
+    require("jax-pinn")
+    require("numba-rk")
+    solver = make_solver("jax-pinn", CASE, **PINN)
+    solver.fit()
+    return verdict(solver, CASE, SETTINGS)
+
+
+def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_and_a_label(rows):
+    queries = [q.name for q in verdict_queries(CASE, SETTINGS)]
+    assert [r["query"] for r in rows] == [q for q in queries for _ in (0, 1)]
+    assert [r["seed"] for r in rows] == [0, 1] * len(queries)
+    assert {"30 single points, one call", "30 single points over 5 P1, one call"} <= set(queries)
+    points = [r for r in rows if r["query"] == "30 single points over 5 P1, one call"]
+    assert points and all(r["distinct_p1"] == 5 for r in points)
+    for r in rows:
+        assert r["label"] != NO_RIVAL, r
+        assert r["samples"] == len(r["pinn_samples_s"]) == len(r["rival_samples_s"]) == 8 >= 7
+        assert r["ratio_low"] <= r["ratio"] <= r["ratio_high"]
+        assert r["label"] == verdict_label(r["ratio_low"], r["ratio_high"])
+        assert r["ratio"] == pytest.approx(np.median(r["rival_samples_s"]) / np.median(r["pinn_samples_s"]))
+
+
+def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_point_of_its_sweep(rows):
+    rivals = Rivals(CASE, SETTINGS)
+    queries = {q.name: q for q in verdict_queries(CASE, SETTINGS)}
+    for r in rows:
+        assert r["rival_rel_l2_delta"] <= r["pinn_rel_l2_delta"] and r["rival_rel_l2_omega"] <= r["pinn_rel_l2_omega"]
+        family = next(points for points in rivals.sweeps.values() if any(c.label == r["rival"] for c in points))
+        at = [c.label for c in family].index(r["rival"])
+        if at > 0:  # the coarser point before it is not as accurate on this query
+            coarser = rivals.errors(family[at - 1], queries[r["query"]])
+            assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]
+
+
+def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
+    by_seed = {r["seed"]: r["pinn_rel_l2_delta"] for r in rows if r["query"] == "grid 100x201"}
+    assert by_seed[0] != by_seed[1]
+    frames = {"verdict": _frame(rows)}
+    table = verdicts(frames)
+    assert len(table) == len(verdict_queries(CASE, SETTINGS)) and (table["seeds"] == 2).all()
+    for _, v in table.iterrows():
+        labels = {r["label"] for r in rows if r["query"] == v["query"]}
+        assert v["verdict"] == (labels.pop() if len(labels) == 1 else "tie")
+    same = compare_runs(frames, frames)
+    assert (same["agreement"] == "agree").all()
+
+
+def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate_point_says_so(monkeypatch):
+    require("jax-pinn")
+    require("numba-rk")
+    solver = make_solver("jax-pinn", CASE, **{**PINN, "max_iterations": 2})
+    solver.fit()
+    small = replace(SETTINGS, verdict_seeds=(0,), throughput_sizes=(), points_batch=0)
+    gated = verdict(solver, CASE, replace(small, verdict_gate=1e-12))
+    assert gated and all(r["label"] == CLASSICAL_FASTER and r["gate"] is False for r in gated)
+    monkeypatch.setattr(_matching.Rivals, "errors", lambda self, c, q: (np.inf, np.inf))
+    _matching_cache_clear()
+    none = verdict(solver, CASE, replace(small, verdict_gate=1.0))
+    assert all(r["label"] == NO_RIVAL and "no sweep point as accurate" in r["rivals_note"] for r in none)
+
+
+def test_query_errors_include_the_off_training_grid():
+    require("numba-rk")
+    solver = make_solver("numba-rk", CASE, rtol=1e-3, atol=1e-6)
+    solver.fit()
+    query = verdict_queries(CASE, SETTINGS)[0]
+    off = (1.0, 2.0)
+    assert query_errors(solver, CASE, query, off) == (1.0, 2.0)
+    assert max(query_errors(solver, CASE, query)) < 1e-2
+    assert SOLVERS["numba-rk"].compiled
+
+
+def _frame(rows):
+    import pandas as pd
+
+    return pd.DataFrame([{"suite": "verdict", "case": CASE.name, "solver": "jax-pinn", "config": "default",
+                          "variant": "query=numba", "status": "ok", **r} for r in rows])
+
+
+def _matching_cache_clear():
+    from harness.suites import verdict as module
+
+    module._RIVALS.clear()
