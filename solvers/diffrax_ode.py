@@ -17,6 +17,7 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
+    PointsByP1,
     ToleranceOptions,
     at_query_times,
     check_step,
@@ -154,7 +155,7 @@ class DiffraxOptions(ToleranceOptions):
     threads: PositiveInt = 2
 
 
-class DiffraxODE(AbstractSolver):
+class DiffraxODE(PointsByP1, AbstractSolver):
     """diffrax Tsit5 / Dopri5 / Dopri8 with PID step-size control (or a constant step), jitted, float64.
 
     The state is [delta_1..n, omega_1..n] (rad, rad/s) with the machines on the first axis inside
