@@ -109,6 +109,31 @@ class PointGroups(NamedTuple):
         starts = np.concatenate(([0], np.flatnonzero(p1[1:] != p1[:-1]) + 1, [p1.size]))
         return cls(p1[starts[:-1]], order, starts)
 
+    def _cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """(group, position in the group) of each entry of `order`, int64 (n_s,) each."""
+        sizes = np.diff(self.starts)
+        group = np.repeat(np.arange(sizes.size), sizes)
+        return group, np.arange(group.size) - self.starts[group]
+
+    def padded_times(self, t: np.ndarray, rows: int, width: int) -> np.ndarray:
+        """(rows, width) s: row g < n_g the times of group g ascending, repeated at its last up to
+        `width` (>= the largest group); rows from n_g copy the last group's (a compiled size of a
+        batch over groups). `t` (n_s,) the pairs' times in input order."""
+        group, position = self._cells()
+        times = np.empty((rows, width))
+        times[:self.P1.size] = t[self.order[self.starts[1:] - 1], None]  # each group's last time
+        times[group, position] = t[self.order]
+        times[self.P1.size:] = times[self.P1.size - 1]
+        return times
+
+    def scatter(self, values: np.ndarray) -> np.ndarray:
+        """Per-pair values (n_s, ...) in input order from per-group ones (>= n_g, >= the largest
+        group, ...) at the positions of `padded_times`."""
+        group, position = self._cells()
+        out = np.empty((self.order.size, *values.shape[2:]), values.dtype)
+        out[self.order] = values[group, position]
+        return out
+
 
 def points_by_p1(solve: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
                  t: np.ndarray, P1: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
