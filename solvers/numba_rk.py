@@ -52,7 +52,8 @@ class NumbaRK(AbstractSolver):
     DOP853), "dopri5" (scipy's RK45: Dormand-Prince 5(4), quartic dense output) or "rk4" (classic,
     fixed step, cubic Hermite output); rtol, atol (adaptive methods; ode45's 1e-3, 1e-6 by
     default); dt (s, rk4: ceil(t / dt) equal steps); max_steps (per trajectory); parallel (P1 over
-    numba threads, prange, for more than one P1) with `threads` of them; m_bounds, d_bounds
+    numba threads, prange, for more than one P1, and solve_points' distinct P1) with `threads`
+    of them; m_bounds, d_bounds
     (p.u.; default the case's per-machine boxes), the search box of `identify`, which integrates
     the forward sensitivities d(delta, omega)/d(m_1..n, d_1..n) along (the analytic Jacobian of
     the least squares).
