@@ -13,6 +13,7 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
+    PointsByP1,
     ToleranceOptions,
     at_query_times,
     identify_least_squares,
@@ -62,7 +63,7 @@ def swing_dae(case: Case, graph: Literal["sx", "mx"] = "sx") -> dict:
     return {"x": x, "p": p, "ode": ca.vertcat(x[n:], acc)}
 
 
-class CasadiCVODES(AbstractSolver):
+class CasadiCVODES(PointsByP1, AbstractSolver):
     """CVODES on the n-machine swing equation, P, m and d parameters of one symbolic model (`swing_dae`).
 
     CVODES runs with its defaults: BDF, Newton iterations, and the exact Jacobian of the symbolic

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import NamedTuple, TypeVar
+from typing import NamedTuple, Protocol, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -17,8 +17,9 @@ from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "ToleranceOptions", "at_query_times",
-           "check_step", "identify_least_squares", "run_batch", "search_boxes", "which_p1"]
+__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "PointGroups", "PointsByP1",
+           "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares", "points_by_p1",
+           "run_batch", "search_boxes", "which_p1"]
 
 
 class ToleranceOptions(OptionSchema):
@@ -87,6 +88,87 @@ def run_batch(run: Callable[[np.ndarray], T], P1: np.ndarray) -> T:
         for p1 in P1:
             run(P1[P1 == p1][:1])
         raise
+
+
+class PointGroups(NamedTuple):
+    """The pairs (t[i] s, P1[i] p.u.) of a points query grouped by P1: the distinct P1 (n_g,)
+    ascending, `order` (n_s,) int64, the pair indices group after group and by time within a
+    group (ties in input order), and `starts` (n_g + 1,) int64, group g being
+    order[starts[g]:starts[g + 1]]. One trajectory per group serves every pair of it."""
+
+    P1: np.ndarray
+    order: np.ndarray
+    starts: np.ndarray
+
+    @classmethod
+    def of(cls, t: np.ndarray, P1: np.ndarray) -> PointGroups:
+        """Groups of the pairs of the 1-D arrays t (s) and P1 (p.u.) of one length n_s >= 1."""
+        order = np.argsort(t, kind="stable")
+        order = order[np.argsort(P1[order], kind="stable")]  # by P1, by time within one P1
+        p1 = P1[order]
+        starts = np.concatenate(([0], np.flatnonzero(p1[1:] != p1[:-1]) + 1, [p1.size]))
+        return cls(p1[starts[:-1]], order, starts)
+
+    def _cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """(group, position in the group) of each entry of `order`, int64 (n_s,) each."""
+        sizes = np.diff(self.starts)
+        group = np.repeat(np.arange(sizes.size), sizes)
+        return group, np.arange(group.size) - self.starts[group]
+
+    def padded_times(self, t: np.ndarray, rows: int, width: int) -> np.ndarray:
+        """(rows, width) s: row g < n_g the times of group g ascending, repeated at its last up to
+        `width` (>= the largest group); rows from n_g copy the last group's (a compiled size of a
+        batch over groups). `t` (n_s,) the pairs' times in input order."""
+        group, position = self._cells()
+        times = np.empty((rows, width))
+        times[:self.P1.size] = t[self.order[self.starts[1:] - 1], None]  # each group's last time
+        times[group, position] = t[self.order]
+        times[self.P1.size:] = times[self.P1.size - 1]
+        return times
+
+    def scatter(self, values: np.ndarray) -> np.ndarray:
+        """Per-pair values (n_s, ...) in input order from per-group ones (>= n_g, >= the largest
+        group, ...) at the positions of `padded_times`."""
+        group, position = self._cells()
+        out = np.empty((self.order.size, *values.shape[2:]), values.dtype)
+        out[self.order] = values[group, position]
+        return out
+
+
+def points_by_p1(solve: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+                 t: np.ndarray, P1: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.), 1-D arrays
+    of one length n_s: one `solve(times, p1)` per distinct P1 (an adapter's `_solve`: (1, n_t, n)
+    arrays at the sorted unique `times` of that P1's pairs, `p1` of shape (1,)), so a P1 shared by
+    many pairs is one integration, and a P1 of one pair is that pair's own integration."""
+    groups = PointGroups.of(t, P1)
+    order, starts = groups.order, groups.starts.tolist()
+    delta, omega = np.empty((t.size, n)), np.empty((t.size, n))
+    for g in range(groups.P1.size):
+        pairs = order[starts[g]:starts[g + 1]]
+        if pairs.size == 1:
+            d, o = solve(t[pairs], groups.P1[g:g + 1])
+            delta[pairs], omega[pairs] = d[0], o[0]
+            continue
+        times, back = np.unique(t[pairs], return_inverse=True)
+        d, o = solve(times, groups.P1[g:g + 1])
+        delta[pairs], omega[pairs] = d[0, back], o[0, back]
+    return delta, omega
+
+
+class _Solves(Protocol):
+    case: Case
+
+    def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+class PointsByP1:
+    """Mixin of the classical adapters (listed before `AbstractSolver`): `solve_points` by one
+    integration per distinct P1 (`points_by_p1`) instead of one per pair."""
+
+    def _solve_points(self: _Solves, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (n_s, n), at the pairs (t[i] s, P1[i] p.u.): `points_by_p1`."""
+        return points_by_p1(self._solve, t, P1, self.case.n)
 
 
 class ObservationLayout(NamedTuple):

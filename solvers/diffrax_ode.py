@@ -17,10 +17,12 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
+    PointGroups,
     ToleranceOptions,
     at_query_times,
     check_step,
     identify_least_squares,
+    points_by_p1,
     search_boxes,
 )
 from solvers.options import PositiveFloat, PositiveInt
@@ -102,7 +104,9 @@ def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max
 
     values(m (n,), d (n,), p_m (n,), rtol, atol, dt, t (n_t,) sorted, P1 (n_p,))
         -> (y (n_p, n_t, 2n) = [delta_1..n, omega_1..n], ok (n_p,));
-    sensitivities(m (n,), d (n,), ...) -> (y, ok, dy/d(m, d) (n_p, n_t, 2n, 2n), columns m_1..n, d_1..n).
+    sensitivities(m (n,), d (n,), ...) -> (y, ok, dy/d(m, d) (n_p, n_t, 2n, 2n), columns m_1..n, d_1..n);
+    points(m, d, p_m, rtol, atol, dt, T (n_g, k) each row sorted, P1 (n_g,)) -> (y (n_g, k, 2n), ok
+    (n_g,)): one trajectory per row, to that row's last time, each with its own steps (jax.vmap).
     Mechanical powers as `Case.powers`: generator 1 (index 0) gets P1, the others p_m.
     """
     n = structure.n
@@ -120,9 +124,11 @@ def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max
         )
         return sol.ys, sol.result == diffrax.RESULTS.successful  # ys (n_t, 2n, ...)
 
+    def powers_of(P1, p_m):  # (n, n_p): row 0 is P1, row k the constant p_m[k] (Case.powers, machines first)
+        return jnp.concatenate([P1[None, :], jnp.broadcast_to(p_m[1:, None], (n - 1, P1.size))])
+
     def values(m, d, p_m, rtol, atol, dt, t, P1):
-        # (n, n_p): row 0 is P1, row k the constant p_m[k] (Case.powers, machines first)
-        powers = jnp.concatenate([P1[None, :], jnp.broadcast_to(p_m[1:, None], (n - 1, P1.size))])
+        powers = powers_of(P1, p_m)
         if batch == "stacked":
             ys, ok = solve(m, d, rtol, atol, dt, t, powers)
             y = jnp.transpose(ys, (2, 0, 1))  # (n_t, 2n, n_p) -> (n_p, n_t, 2n)
@@ -140,7 +146,12 @@ def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max
         jac, (y, ok) = jax.jacfwd(of_md, has_aux=True)(jnp.concatenate([m, d]), p_m, rtol, atol, dt, t, P1)
         return y, ok & jnp.all(jnp.isfinite(jac), axis=(1, 2, 3)), jac
 
-    return jax.jit(values), jax.jit(sensitivities)
+    def points(m, d, p_m, rtol, atol, dt, T, P1):
+        y, ok = jax.vmap(lambda times, p: solve(m, d, rtol, atol, dt, times, p),
+                         in_axes=(0, 1))(T, powers_of(P1, p_m))  # (n_g, k, 2n)
+        return y, ok & jnp.all(jnp.isfinite(y), axis=(1, 2))
+
+    return jax.jit(values), jax.jit(sensitivities), jax.jit(points)
 
 
 Method = Literal[tuple(METHODS)]  # one of the keys of METHODS
@@ -202,6 +213,12 @@ class DiffraxODE(AbstractSolver):
     # larger ones compile on first use. Running every shape held 4.2 GB at 54 machines and more
     # than 16 GiB at 260 (10,000 trajectories: 8.4 GB of states alone), measured.
     FIT_MAX_BYTES: ClassVar[int] = 2**30
+    # `fit` compiles solve_points for these numbers of pairs, every P1 distinct (the latency suite's
+    # batches of scattered points); other layouts compile on first use.
+    FIT_POINTS: ClassVar[tuple[int, ...]] = (1000, 10000)
+    # solve_points' padded output (distinct P1 x times of the largest group x 2n float64) above this
+    # takes one call per distinct P1 instead of one over all of them
+    POINTS_MAX_BYTES: ClassVar[int] = 2**28
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
         """A constant step sweeps dt; an adaptive one the tolerances (the base class's sweep)."""
@@ -224,7 +241,7 @@ class DiffraxODE(AbstractSolver):
 
     def _fit(self) -> FitReport:
         note = configure_threads(self.options["threads"])
-        self._values, _ = self._functions(Structure.of(self.case))
+        self._values, _, self._points = self._functions(Structure.of(self.case))
         case = self.case
         with jax.enable_x64(True):  # device arrays once: converting them cost ~20 us of every query
             self._fixed = tuple(jnp.asarray(x, jnp.float64)
@@ -239,6 +256,9 @@ class DiffraxODE(AbstractSolver):
                 # padded as `_run` pads a query of this size, so that the query finds this compilation
                 y, _ = self._values(*self._fixed, _pad(t, bucket(n_t)), np.full(bucket(n_p), p1))
                 y.block_until_ready()
+        for n_s in self.FIT_POINTS:  # as many distinct P1 as pairs, one time each: t = 0, nothing to integrate
+            if bucket(n_s) * 2 * case.n * 8 <= self.FIT_MAX_BYTES:
+                self._solve_points(np.zeros(n_s), np.linspace(case.p1_min, case.p1_max, n_s))
         return FitReport(seconds=0.0, message=note)
 
     def _run(self, times: np.ndarray, P1: np.ndarray) -> np.ndarray:
@@ -272,10 +292,28 @@ class DiffraxODE(AbstractSolver):
         n = self.case.n
         return y[..., :n], y[..., n:]
 
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.): one
+        compiled call over the distinct P1 (`_compiled`'s points), each trajectory to the last time
+        of its pairs, its times and the number of distinct P1 padded to `bucket` sizes; one call per
+        distinct P1 (`points_by_p1`) when that padded output would exceed `POINTS_MAX_BYTES`."""
+        groups, n = PointGroups.of(t, P1), self.case.n
+        rows, width = bucket(groups.P1.size), bucket(int(np.diff(groups.starts).max()))
+        if rows * width * 2 * n * 8 > self.POINTS_MAX_BYTES:
+            return points_by_p1(self._solve, t, P1, n)
+        with jax.enable_x64(True):
+            y, ok = self._points(*self._fixed, groups.padded_times(t, rows, width), _pad(groups.P1, rows))
+        ok = np.asarray(ok)[:groups.P1.size]
+        if not ok.all():
+            raise SolveError(f"{self.name}: integration failed at P1={groups.P1[np.argmin(ok)]:g}: max_steps="
+                             f"{self.options['max_steps']} reached or the state is not finite")
+        y = groups.scatter(np.asarray(y))
+        return y[:, :n], y[:, n:]
+
     def _identify(self, obs: Observations) -> Estimate:
         note = configure_threads(self.options["threads"])
         case, n = self.case, self.case.n
-        values, sensitivities = self._functions(Structure.of(case))
+        values, sensitivities, _ = self._functions(Structure.of(case))
         layout = ObservationLayout.of(obs)
         n_p, n_t = layout.P1.size, layout.t.size
         with jax.enable_x64(True):

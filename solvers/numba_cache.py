@@ -24,17 +24,21 @@ def main() -> int:
     import numpy as np
 
     from solvers import numba_kernels
+    from solvers.numba_points import points_kernel
     from systems.cases import SMIB_INFERENCE
 
     start = time.perf_counter()
     # the SMIB's kernels (n = 1): serial, with and without sensitivities, and the parallel
-    # forward ones (numba-rk's variant parallel=True)
+    # forward ones (numba-rk's variant parallel=True); its points kernels, serial and parallel
     system = numba_kernels.system_array(SMIB_INFERENCE)
     options = np.array([1e-3, 1e-6, 0.1, 1000.0])
     for method in numba_kernels.METHODS.values():
         for sens, parallel in ((False, False), (True, False), (False, True)):
             kernel = numba_kernels.kernel(method, sens, parallel, 1)
             kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, options)
+        for parallel in (False, True):  # numba-rk's solve_points: two pairs of one P1
+            points_kernel(method, parallel, 1)(np.array([0.0, 1.0]), np.array([0, 1]), np.array([0, 2]),
+                                               np.array([0.1]), system, options)
     try:
         from solvers.pinn.architecture import Architecture
         from solvers.pinn.compiled import NumbaEvaluator

@@ -79,14 +79,14 @@ D8_E3, D8_E5, D8_D = _c853.E3.copy(), _c853.E5.copy(), _c853.D.copy()
 @njit(cache=True, error_model="numpy")
 def _start(y, ts, order, system, n, out, col):
     """y = the initial state (delta0, omega0 of each machine; zero sensitivities); writes it to
-    trajectory `col` of `out` (see `kernel`) at every output time <= 0 and returns how many output
-    times that was."""
+    trajectory `col` of `out` (see `kernel`) at every output time ts[order[i]] <= 0 and returns how
+    many output times that was."""
     for k in range(n):
         y[k], y[n + k] = system[k, DELTA0], system[k, OMEGA0]
     for i in range(2 * n, y.size):
         y[i] = 0.0
     i_out = 0
-    while i_out < ts.size and ts[order[i_out]] <= 0.0:
+    while i_out < order.size and ts[order[i_out]] <= 0.0:
         for i in range(y.size):
             out[i // n, col, order[i_out], i % n] = y[i]
         i_out += 1
@@ -224,8 +224,9 @@ def _make_adaptive(method: int, sens: bool, n: int):
 
     def adaptive(ts, order, P, system, coupled, rtol, atol, max_steps, out, col):
         """From t = 0 to ts[order[-1]] (s), dense output at ts[order] into trajectory `col` of `out`
-        (see `kernel`); returns a status code."""
-        n_t = ts.size
+        (see `kernel`); `order` indexes ts in ascending time, all of it or a part (one trajectory's
+        times of a points query); returns a status code."""
+        n_t = order.size
         scratch = np.empty(3 * n)
         K = np.empty((16, n_y))
         work = np.empty((8, n_y))
@@ -353,8 +354,8 @@ def _make_rk4(sens: bool, n: int):
     def rk4(ts, order, P, system, coupled, dt, max_steps, out, col):
         """ceil(t_end / dt) equal steps from t = 0 to t_end = ts[order[-1]] (s), output at ts[order]
         by cubic Hermite interpolation of each step's end states and derivatives (4th order, as
-        RK4 itself); returns a status code."""
-        n_t = ts.size
+        RK4 itself); `order` as the adaptive methods'; returns a status code."""
+        n_t = order.size
         scratch = np.empty(3 * n)
         K = np.empty((4, n_y))
         work = np.empty((4, n_y))

@@ -15,11 +15,13 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
+    PointGroups,
     ToleranceOptions,
     check_step,
     identify_least_squares,
     search_boxes,
 )
+from solvers.numba_points import points_kernel
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
 
@@ -50,7 +52,8 @@ class NumbaRK(AbstractSolver):
     DOP853), "dopri5" (scipy's RK45: Dormand-Prince 5(4), quartic dense output) or "rk4" (classic,
     fixed step, cubic Hermite output); rtol, atol (adaptive methods; ode45's 1e-3, 1e-6 by
     default); dt (s, rk4: ceil(t / dt) equal steps); max_steps (per trajectory); parallel (P1 over
-    numba threads, prange, for more than one P1) with `threads` of them; m_bounds, d_bounds
+    numba threads, prange, for more than one P1, and solve_points' distinct P1) with `threads`
+    of them; m_bounds, d_bounds
     (p.u.; default the case's per-machine boxes), the search box of `identify`, which integrates
     the forward sensitivities d(delta, omega)/d(m_1..n, d_1..n) along (the analytic Jacobian of
     the least squares).
@@ -97,8 +100,10 @@ class NumbaRK(AbstractSolver):
                                      np.float64)
             self._serial = kernels.kernel(method, False, False, n)
             self._batch = kernels.kernel(method, False, options["parallel"], n)
+            self._points = points_kernel(method, options["parallel"], n)
             for run in (self._serial, self._batch):
                 self._warm(run)
+            self._solve_points(np.array([0.1, 0.0, 0.1]), np.array([self.case.p1_min, self.case.p1_min, 0.0]))
         if sensitivities and not hasattr(self, "_sensitivities"):
             self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
             self._warm(self._sensitivities)
@@ -122,6 +127,19 @@ class NumbaRK(AbstractSolver):
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         run = self._serial if P1.size == 1 else self._batch
         states = self._run(run, t, P1, self._system, self._options)
+        return states[0], states[1]
+
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.): one
+        compiled call (`numba_points.points_kernel`), one trajectory per distinct P1 integrated to
+        the last time of its pairs (a P1 of one pair: to that pair's t, as a one-point `solve`)."""
+        groups = PointGroups.of(t, P1)
+        if self.options["parallel"]:
+            numba.set_num_threads(self.options["threads"])
+        states, failed, status = self._points(t, groups.order, groups.starts, groups.P1, self._system,
+                                              self._options)
+        if failed >= 0:
+            raise SolveError(f"{self.name}: integration failed at P1={groups.P1[failed]:g}: {_FAILURES[status]}")
         return states[0], states[1]
 
     def _identify(self, obs: Observations) -> Estimate:

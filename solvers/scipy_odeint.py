@@ -11,6 +11,7 @@ from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
+    PointsByP1,
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
@@ -31,7 +32,7 @@ def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: 
     return np.concatenate([state[:, n:], acc], axis=1).ravel()
 
 
-class ScipyOdeint(AbstractSolver):
+class ScipyOdeint(PointsByP1, AbstractSolver):
     """LSODA (Adams / BDF with automatic switching, compiled Fortran) on one system of
     2n * len(P1) states: the Python right-hand side is called once per step for every trajectory,
     which is what makes a batch cheap. Each trajectory's states are contiguous, so LSODA's stiff

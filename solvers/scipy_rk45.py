@@ -11,6 +11,7 @@ from solvers.base import AbstractSolver, Estimate, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
+    PointsByP1,
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
@@ -44,7 +45,7 @@ class RK45Options(ToleranceOptions):
     batch: Literal["loop", "stacked"] = "loop"
 
 
-class ScipyRK45(AbstractSolver):
+class ScipyRK45(PointsByP1, AbstractSolver):
     """Adaptive explicit RK45 from scipy, one of two batch modes over P1.
 
     Options: rtol, atol (defaults 1e-3, 1e-6: MATLAB ode45's, which made the paper's data);

@@ -27,6 +27,8 @@ def fit_for_tests(solver) -> None:
     """`fit()`, with diffrax compiling one small shape instead of the benchmark's (its JIT is slow)."""
     if hasattr(solver, "FIT_SHAPES"):
         solver.FIT_SHAPES = ((7, 3),)
+    if hasattr(solver, "FIT_POINTS"):
+        solver.FIT_POINTS = ()
     solver.fit()
 
 
@@ -68,3 +70,35 @@ def three_machine_lossy() -> Case:
 
 
 THREE_MACHINES = three_machine_lossy()
+
+
+def points_queries(case) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Two `solve_points` queries on `case`, pairs (t s, P1 p.u.) in scrambled order with t = 0 and
+    a duplicate pair: "distinct" (10 pairs, 9 distinct P1: every pair its own P1 but the duplicate)
+    and "shared" (12 pairs over 3 P1, 4 each)."""
+    rng = np.random.default_rng(11)
+    t = np.concatenate([[0.0], case.t_final * (1.0 - rng.random(11))])
+    distinct_p1 = rng.uniform(case.p1_min, case.p1_max, 10)
+    distinct_t = t[:10].copy()
+    distinct_t[9], distinct_p1[9] = distinct_t[3], distinct_p1[3]
+    shared_p1 = rng.permutation(np.repeat(np.linspace(case.p1_min, case.p1_max, 3), 4))
+    shared_t = t.copy()
+    shared_t[7], shared_p1[7] = shared_t[2], shared_p1[2]
+    return {"distinct": (distinct_t, distinct_p1), "shared": (shared_t, shared_p1)}
+
+
+def per_group(solver, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(delta, omega), (n_s, n), of the pairs (t[i], P1[i]) from one `solve` per distinct P1 at its
+    pairs' times: what a points query grouped by P1 answers."""
+    delta, omega = np.empty((t.size, solver.case.n)), np.empty((t.size, solver.case.n))
+    for p1 in np.unique(P1):
+        pairs = np.flatnonzero(P1 == p1)
+        traj = solver.solve(t[pairs], np.array([p1]))
+        delta[pairs], omega[pairs] = traj.delta[0], traj.omega[0]
+    return delta, omega
+
+
+def per_pair(solver, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(delta, omega), (n_s, n), of the pairs (t[i], P1[i]) from one `solve` each."""
+    rows = [solver.solve(t[i:i + 1], P1[i:i + 1]) for i in range(t.size)]
+    return np.array([r.delta[0, 0] for r in rows]), np.array([r.omega[0, 0] for r in rows])

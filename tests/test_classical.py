@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import THREE_MACHINES, max_rel
+from conftest import THREE_MACHINES, max_rel, per_group, per_pair, points_queries
 
 from harness import metrics
 from solvers import make_solver
@@ -226,3 +226,27 @@ def test_failed_integration_names_solver_and_p1(name):
     # finite but absurd: the state overflows and the step size collapses
     with pytest.raises(SolveError, match=rf"{name}: .*failed at P1=1e\+308"), np.errstate(all="ignore"):
         solver.solve([1.0, 20.0], [0.1, 1e308])
+
+
+@pytest.mark.parametrize("name", CLASSICAL)
+def test_solve_points_integrates_once_per_distinct_p1(name):
+    """Pairs of distinct P1 (a duplicate pair among them) answer as one-point solves; pairs sharing
+    P1 as one solve of that P1 at its pairs' times; scrambled order and t = 0 kept."""
+    solver = make_solver(name, SMIB_INFERENCE)
+    solver.fit()
+    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
+        t, P1 = points_queries(SMIB_INFERENCE)[pattern]
+        points = solver.solve_points(t, P1)
+        delta, omega = expect(solver, t, P1)
+        assert points.delta.shape == points.omega.shape == (t.size, 1)
+        np.testing.assert_allclose(points.delta, delta, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(points.omega, omega, rtol=0, atol=1e-10)
+        np.testing.assert_array_equal(points.delta[t == 0.0], 0.1)
+
+
+@pytest.mark.parametrize("name", CLASSICAL)
+def test_failed_point_names_solver_and_p1(name):
+    solver = make_solver(name, SMIB_INFERENCE)
+    solver.fit()
+    with pytest.raises(SolveError, match=rf"{name}: .*failed at P1=1e\+308"), np.errstate(all="ignore"):
+        solver.solve_points(np.array([1.0, 20.0, 5.0]), np.array([0.1, 1e308, 0.1]))

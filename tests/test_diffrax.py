@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import THREE_MACHINES, max_rel, require
+from conftest import THREE_MACHINES, max_rel, per_pair, points_queries, require
 
 from harness import metrics
 from solvers import make_solver
@@ -30,6 +30,7 @@ def _fitted(case=SMIB_INFERENCE, config="default", shapes=SMALL_SHAPES, **option
     require("diffrax")
     solver = make_solver("diffrax", case, config, **options)
     solver.FIT_SHAPES = shapes
+    solver.FIT_POINTS = ()
     solver.fit()
     return solver
 
@@ -187,8 +188,8 @@ def test_jacobian_equals_finite_differences(three_obs):
     solver = make_solver("diffrax", THREE, "tight")
     layout = ObservationLayout.of(three_obs)
     t, p1 = _pad(layout.t, bucket(layout.t.size)), _pad(layout.P1, bucket(layout.P1.size))
-    values, sensitivities = solver._functions(Structure.of(THREE))
-    assert (values, sensitivities) == _compiled(Structure.of(THREE), "dopri8", "stacked", True, 16384)
+    values, sensitivities, points = solver._functions(Structure.of(THREE))
+    assert (values, sensitivities, points) == _compiled(Structure.of(THREE), "dopri8", "stacked", True, 16384)
     # identification's trial cases share the compilation: only m, d (and p_m) differ
     assert Structure.of(THREE.with_params(0.5, 0.2)) == Structure.of(THREE)
     n, h = THREE.n, 1e-6
@@ -248,3 +249,31 @@ def test_fit_leaves_shapes_over_its_memory_cap_to_their_first_query(monkeypatch)
     t, P1 = np.linspace(0.0, THREE.t_final, 11), np.array([THREE.p1_min, THREE.p1_max])
     ref_delta, _ = reference(THREE, t, P1)
     np.testing.assert_allclose(solver.solve(t, P1).delta, ref_delta, rtol=0, atol=1e-8)
+
+
+def test_solve_points_in_one_call_equals_one_point_solves(tight):
+    """Pairs of distinct P1 (a duplicate among them) equal one-point solves; pairs sharing P1, one
+    trajectory per P1 to its pairs' last time, equal them to the tolerance; scrambled order and
+    t = 0 kept. Both queries pad to one compiled shape (10 P1 x 10 times)."""
+    for pattern, atol in (("distinct", 1e-10), ("shared", 1e-8)):
+        t, P1 = points_queries(SMIB_INFERENCE)[pattern]
+        points = tight.solve_points(t, P1)
+        delta, omega = per_pair(tight, t, P1)
+        assert points.delta.shape == points.omega.shape == (t.size, 1)
+        np.testing.assert_allclose(points.delta, delta, rtol=0, atol=atol)
+        np.testing.assert_allclose(points.omega, omega, rtol=0, atol=atol)
+        np.testing.assert_array_equal(points.delta[t == 0.0], 0.1)
+
+
+def test_solve_points_over_its_memory_cap_integrates_per_p1(tight, monkeypatch):
+    t, P1 = points_queries(SMIB_INFERENCE)["distinct"]
+    monkeypatch.setattr(tight, "POINTS_MAX_BYTES", 0)
+    points = tight.solve_points(t, P1)
+    delta, omega = per_pair(tight, t, P1)
+    np.testing.assert_array_equal(points.delta, delta)
+    np.testing.assert_array_equal(points.omega, omega)
+
+
+def test_failed_point_names_p1(tight):
+    with pytest.raises(SolveError, match=r"diffrax: .*failed at P1=1e\+308"):
+        tight.solve_points(np.array([1.0, 20.0, 5.0]), np.array([0.1, 1e308, 0.1]))

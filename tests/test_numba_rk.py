@@ -9,6 +9,7 @@ import itertools
 
 import numpy as np
 import pytest
+from conftest import per_group, per_pair, points_queries
 
 from harness import metrics
 from harness.suites.identification import observations
@@ -86,8 +87,8 @@ def test_network_matches_reference(case, config, options, bound):
 
 def test_network_points_and_parallel_batch():
     """solve_points gives (n_s, n) rows, each machine's state at its (t, P1) (to the tolerance: a
-    point integrates to its own t, with other steps than the grid); the parallel kernel gives the
-    serial one's bits."""
+    P1 integrates to its own pairs' last time, with other steps than the grid's); the parallel
+    kernel gives the serial one's bits."""
     solver = _fitted("tight", case=BUS)
     t, P1 = np.array([4.5, 0.7, 2.0]), np.array([0.09, 0.17, 0.09])
     points = solver.solve_points(t, P1)
@@ -210,3 +211,30 @@ def test_too_few_steps_raises_solve_error_naming_p1(method):
 def test_overflow_raises_solve_error():
     with pytest.raises(SolveError, match=r"failed at P1=1e\+308"), np.errstate(all="ignore"):
         _fitted().solve([1.0, 20.0], [0.1, 1e308])
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+@pytest.mark.parametrize(("method", "case"), [*((m, SMIB_INFERENCE) for m in TIGHT), ("dop853", BUS)])
+def test_solve_points_in_one_call_has_the_bits_of_solve(method, case, parallel):
+    """Pairs of distinct P1 (a duplicate among them) have the bits of one-point solves; pairs
+    sharing P1 those of one solve of that P1 at its pairs' times, and so the per-pair solves' values
+    to the tolerance; scrambled order and t = 0 kept."""
+    solver = _fitted("tight", case, parallel=parallel, **TIGHT[method])
+    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
+        t, P1 = points_queries(case)[pattern]
+        points = solver.solve_points(t, P1)
+        delta, omega = expect(solver, t, P1)
+        assert points.delta.shape == points.omega.shape == (t.size, case.n)
+        np.testing.assert_array_equal(points.delta, delta)
+        np.testing.assert_array_equal(points.omega, omega)
+        np.testing.assert_array_equal(points.delta[t == 0.0], np.broadcast_to(case.delta0, (1, case.n)))
+    delta, omega = per_pair(solver, t, P1)
+    np.testing.assert_allclose(points.delta, delta, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(points.omega, omega, rtol=0, atol=1e-8)
+
+
+def test_failed_point_names_p1():
+    with pytest.raises(SolveError, match=r"numba-rk: integration failed at P1=0\.15: more than max_steps"):
+        _fitted(max_steps=5).solve_points(np.array([0.5, 20.0, 0.0]), np.array([0.1, 0.15, 0.15]))
+    with pytest.raises(SolveError, match=r"failed at P1=1e\+308"), np.errstate(all="ignore"):
+        _fitted(parallel=True).solve_points(np.array([1.0, 20.0]), np.array([0.1, 1e308]))
