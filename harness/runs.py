@@ -87,7 +87,7 @@ class Settings:
     networks (`IDENTIFIES_NETWORKS`: at ode45's tolerances a classical identification there is both
     slow, minutes with 2n unknowns, and biased by the integration error: 10-14 % on wscc9,
     measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
-    took 520 s on wscc9, measured); `network_pinn_options` gives a case's PINN fits their budget
+    took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
     (iterations per window, `harness.plan`). The verdict suite (`harness.suites.verdict`) measures
     the PINNs of `verdict_pinns` ((adapter, configs, options its spec has), e.g. the JAX PINN with
     its compiled query path), each trained from `verdict_seeds`, against their rivals matched on
@@ -123,7 +123,7 @@ class Settings:
     cache_dir: Path | None = Path(".cache/models")
     retrain: bool = False
     cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES)
-    network_pinn_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    case_pinn_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     network_noise_levels: tuple[float, ...] = (0.0,)
     network_identify_cases: tuple[str, ...] = NETWORK_CASES
     unit_limits: Limits | None = None
@@ -157,7 +157,7 @@ class Settings:
         """These settings for a run of the scaling suite alone: each unit under
         `scaling_unit_limits`, PINN budgets `scaling_pinn_options` (iterations, not seconds), and
         the configs made for large systems (`LARGE_SYSTEMS`) not omitted."""
-        return replace(self, unit_limits=self.scaling_unit_limits, network_pinn_options={},
+        return replace(self, unit_limits=self.scaling_unit_limits, case_pinn_options={},
                        pinn_options={**self.pinn_options, **self.scaling_pinn_options},
                        omit_marks=tuple(m for m in self.omit_marks if m != LARGE_SYSTEMS))
 
@@ -168,7 +168,8 @@ class Settings:
 
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, max_query_s=5.0, seeds=(0,),
-    pinn_options={"max_iterations": 150, "id_max_iterations": 150, "max_seconds": 60.0}, throughput_sizes=(1, 100),
+    pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
+    case_pinn_options={"wscc9": {"max_iterations": 10, "max_seconds": None, "id_max_iterations": 100}},
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"), verdict_seeds=(0,),
     verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
@@ -196,12 +197,13 @@ DEFAULT = Settings(
     pairs=(PAPER_PAIR,),
     skip_identify_marks=(ABLATION,),
     network_wp_rtols=(1e-3, 1e-6, 1e-9),
-    network_pinn_options={case: {"max_iterations": iterations, "max_seconds": None, "id_max_iterations": 600}
+    case_pinn_options={case: {"max_iterations": iterations, "max_seconds": None, "id_max_iterations": 600}
                           for case, iterations in (("wscc9", 100), ("kundur4", 100), ("ieee39", 60))},
     network_identify_cases=("wscc9",),
 )
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0,
-                network_noise_levels=(0.0, 0.01))
+                network_noise_levels=(0.0, 0.01),
+                case_pinn_options={case: {"max_iterations": 300, "max_seconds": None} for case in NETWORK_CASES})
 
 
 def default_specs(

@@ -4,11 +4,13 @@ are named by one label function (`harness.labels.Labels`) in tables, plots and v
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pandas as pd
 
 from harness.cli import README_END, README_START, main
+from harness.compare import COMPARE_END, COMPARE_START, compare_block
 from harness.labels import Labels, split_items
 from harness.pages import GENERATED, readme_block, write_pages
 from harness.report import write_report
@@ -17,14 +19,30 @@ from harness.store import RowStore
 ROOT = Path(__file__).resolve().parent.parent
 
 
+def _named_source(block: str) -> Path:
+    """The results folder a generated block names as its source (its first `.../rows.jsonl`)."""
+    return ROOT / re.search(r"`([^`]+)/rows\.jsonl`", block).group(1)
+
+
 def test_the_readme_verdicts_are_what_the_report_writes_from_the_landed_rows():
     """No hand-typed figure can hide in the README's generated block: it must be, character for
-    character, what `swingbench report results --update-readme README.md` writes from the rows."""
-    rows = RowStore(ROOT / "results", create=False).read().rows
-    meta = json.loads((ROOT / "results" / "metadata.json").read_text(encoding="utf-8"))
+    character, what `swingbench report DIR --update-readme README.md --docs PAGES` writes from the
+    rows of the folder it names."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     block = readme.split(README_START, 1)[1].split(README_END, 1)[0]
-    assert block == readme_block(rows, meta, ROOT / "README.md", ROOT / "docs" / "results", ROOT / "results")
+    results = _named_source(block)
+    rows = RowStore(results, create=False).read().rows
+    meta = json.loads((results / "metadata.json").read_text(encoding="utf-8"))
+    pages = ROOT / re.search(r"\]\(([^)]+)/[^/)]+\.md\)", block).group(1)  # the folder its case pages are in
+    assert block == readme_block(rows, meta, ROOT / "README.md", pages, results)
+
+
+def test_the_readme_comparison_of_two_runs_is_what_compare_writes():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(COMPARE_START, 1)[1].split(COMPARE_END, 1)[0]
+    run_a, run_b = (ROOT / source for source in re.findall(r"`([^`]+)/rows\.jsonl`", block))
+    assert block == compare_block(run_a, run_b, ROOT)
+    assert "0 flip" in block
 
 
 def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:

@@ -425,7 +425,7 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
              for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES]).units}
     assert units[("smib-identification", "")] == ["identification"]
     assert ("smib-identification", "query=numba") not in units
-    assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "work_precision"]
+    assert units[("smib-inference", "query=numba")] == ["accuracy", "latency", "verdict", "work_precision"]
     # an adapter's own query options (scipy RK45's batch mode) likewise; diffrax's batch changes
     # its identification's error control, so its variant identifies
     specs = [SolverSpec("scipy-rk45", options=(("batch", "stacked"),)), SolverSpec("diffrax", options=(("batch", "vmap"),))]
@@ -442,7 +442,7 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     from systems.cases import CASES
     from systems.cases import SMIB_INFERENCE as forward
 
-    settings = replace(DEFAULT, seeds=(0,), network_pinn_options={"wscc9": {"max_iterations": 90, "max_seconds": None}})
+    settings = replace(DEFAULT, seeds=(0,), case_pinn_options={"wscc9": {"max_iterations": 90, "max_seconds": None}})
     specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
     units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings).units
     budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_iterations") for u in units}
@@ -465,7 +465,7 @@ def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
     for unit in units:
         options = unit.spec.make(unit.case).options  # the config's own max_seconds included
         assert options["max_seconds"] is None and options["id_max_seconds"] is None, unit.label
-        assert options["max_iterations"] == DEFAULT.network_pinn_options[unit.case.name]["max_iterations"]
+        assert options["max_iterations"] == DEFAULT.case_pinn_options[unit.case.name]["max_iterations"]
 
 
 def test_work_precision_times_a_compiled_adapter_at_every_t1_once():

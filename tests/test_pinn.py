@@ -760,3 +760,30 @@ def test_marching_save_load_round_trip(marched, target, tmp_path):
         np.savez(fh, theta=theta)
     with pytest.raises(CorruptModelError, match="sha256"):
         load_model(tmp_path / "model")
+
+
+def test_a_marching_model_budgeted_in_iterations_is_the_same_on_a_slower_machine(marched, monkeypatch):
+    """`make bench` trains the network PINNs for iterations per window, not seconds: the same seed
+    gives the same weights and the same error when every clock reading is 100 s later than the last
+    (a machine far slower than this one), up to rounding."""
+    import time as clock
+
+    solver, report = marched
+    name = solver.name
+    t, P1 = np.linspace(0.0, TWO.t_final, 21), np.linspace(TWO.p1_min, TWO.p1_max, 3)
+    ref = reference(TWO, t, P1)[0]
+    now = [clock.perf_counter()]
+
+    def slow() -> float:
+        now[0] += 100.0
+        return now[0]
+
+    monkeypatch.setattr(clock, "perf_counter", slow)
+    again = make_solver(name, TWO, **{**MARCHING, "max_seconds": None})
+    again.fit()
+    timed = make_solver(name, TWO, **{**MARCHING, "max_seconds": 1000.0})
+    timed_report = timed.fit()
+    monkeypatch.undo()
+    assert timed_report.iterations < report.iterations  # what a budget in seconds does on that machine
+    # equal up to the last bits of XLA's threaded sums
+    assert rel_l2(again.solve(t, P1).delta, ref) == pytest.approx(rel_l2(solver.solve(t, P1).delta, ref), rel=1e-9)

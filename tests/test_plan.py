@@ -29,7 +29,10 @@ from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERE
 # runner's plan with `Settings.measures`, the identification and work-precision suites' own checks):
 # [case, solver, config, variant, seed, work, what it records] where the last is "run", the
 # "skipped: ..." status of its one row, or "no rows" (a config that is a point of its adapter's
-# precision sweep: work-precision recorded nothing for it). Recorded once by running that code.
+# precision sweep: work-precision recorded nothing for it). Recorded once by running that code, and
+# recorded again (commit of issue 21) when make bench deliberately changed: the verdict suite's units
+# of the JAX PINN with its compiled query path, and the multi-machine PINNs' budgets in iterations
+# per window (`Settings.case_pinn_options`) where they were seconds.
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {

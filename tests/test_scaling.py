@@ -85,7 +85,7 @@ def test_scaling_settings_budget_pinns_by_iterations():
     from harness.runs import DEFAULT, SCALING_PINN_OPTIONS
 
     settings = DEFAULT.for_scaling()
-    assert settings.unit_limits == DEFAULT.scaling_unit_limits and settings.network_pinn_options == {}
+    assert settings.unit_limits == DEFAULT.scaling_unit_limits and settings.case_pinn_options == {}
     assert settings.pinn_options == SCALING_PINN_OPTIONS and SCALING_PINN_OPTIONS["max_seconds"] is None
 
 
