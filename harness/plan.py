@@ -133,6 +133,8 @@ def _repeats(spec: SolverSpec, cls: type[AbstractSolver] | None, suite: Suite, f
     query_options = cls.QUERY_OPTIONS if cls is not None else frozenset()
     if not suite.queries and any(key in query_options for key, _ in spec.options):
         return f"skipped: {suite.name} measures no queries, and {spec.variant} changes only how a model is queried"
+    if suite.own_query_path and cls is not None and any(key in query_options for key, _ in spec.options):
+        return f"skipped: {suite.name} times every query path of a model itself, {spec.variant} is one of them"
     if suite.sweeps and cls is not None and SWEEP_POINT in cls.marks(spec.config):
         return f"skipped: config {spec.config} is a point of the precision sweep of {spec.solver}'s default config"
     return None

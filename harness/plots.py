@@ -16,7 +16,7 @@ from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
 from harness.labels import Labels
-from harness.verdict_table import headline_query, verdicts
+from harness.verdict_table import headline, verdicts
 from systems.cases import CASES, standard_grid
 
 __all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
@@ -248,24 +248,24 @@ def verdict_plot(frames: dict, names: Labels):
     the PINN faster, red: classical), case and PINN by row, query by column, each cell's label and
     ratio written in it; ties hatched."""
     v = verdicts(frames)
-    if v.empty:
-        return None
-    v = v[v["query"].map(headline_query)]
+    v = v[headline(v)] if not v.empty else v
     if v.empty:
         return None
     rows = list(dict.fromkeys(zip(v["case"], v["pinn"])))
     cols = list(dict.fromkeys(v["query"]))
+    at = [(rows.index((r["case"], r["pinn"])), cols.index(r["query"])) for _, r in v.iterrows()]
     grid = np.full((len(rows), len(cols)), np.nan)
+    for (i, j), ratio in zip(at, v["ratio"]):
+        grid[i, j] = np.log10(ratio) if ratio > 0 else np.nan
+    bound = max(1.0, float(np.nanmax(np.abs(grid)))) if np.isfinite(grid).any() else 1.0
     fig, ax = plt.subplots(figsize=(1.9 * len(cols) + 3, 0.6 * len(rows) + 1.5))
-    for _, r in v.iterrows():
-        i, j = rows.index((r["case"], r["pinn"])), cols.index(r["query"])
-        grid[i, j] = np.log10(r["ratio"]) if r["ratio"] > 0 else np.nan
-        text = "no rival" if np.isnan(r["ratio"]) else f"{r['ratio']:.2g}x\n{r['verdict']}"
-        ax.text(j, i, text, ha="center", va="center", fontsize=7)
+    image = ax.imshow(grid, cmap="RdBu", vmin=-bound, vmax=bound, aspect="auto")
+    for (i, j), (_, r) in zip(at, v.iterrows()):
+        text = r["verdict"] if np.isnan(r["ratio"]) else f"{r['ratio']:.2g}x\n{r['verdict']}"
+        dark = np.isfinite(grid[i, j]) and abs(grid[i, j]) > 0.6 * bound
+        ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
         if r["verdict"] == "tie":
             ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="///", lw=0))
-    bound = max(1.0, float(np.nanmax(np.abs(grid)))) if np.isfinite(grid).any() else 1.0
-    image = ax.imshow(grid, cmap="RdBu", vmin=-bound, vmax=bound, aspect="auto")
     ax.set_xticks(range(len(cols)), [c.replace(", one call", "") for c in cols], rotation=20, ha="right", fontsize=8)
     ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}" for case, pinn in rows], fontsize=8)
     fig.colorbar(image, ax=ax, label="log10(rival time / PINN time)")

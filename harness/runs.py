@@ -89,8 +89,8 @@ class Settings:
     measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
     took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
     (iterations per window, `harness.plan`). The verdict suite (`harness.suites.verdict`) measures
-    the PINNs of `verdict_pinns` ((adapter, configs, options its spec has), e.g. the JAX PINN with
-    its compiled query path), each trained from `verdict_seeds`, against their rivals matched on
+    the PINNs of `verdict_pinns` ((adapter, configs, options its spec has), e.g. the JAX PINN; the
+    suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
     the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
     than it needs to be; a fixed-step adapter sweeps its own steps), in
     `verdict_rounds` rounds of `verdict_pairs` interleaved pairs of samples; a seed whose error in
@@ -133,7 +133,7 @@ class Settings:
     scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
     scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
     verdict_pinns: tuple[tuple[str, tuple[str, ...], tuple[tuple[str, Any], ...]], ...] = (
-        ("jax-pinn", ("default", "marching"), (("query", "numba"),)),)
+        ("jax-pinn", ("default", "marching"), ()),)
     verdict_rtols: tuple[float, ...] = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8, 1e-9, 1e-10)
     verdict_seeds: tuple[int, ...] = (0, 1, 2)
     verdict_rounds: int = 2
@@ -166,12 +166,15 @@ class Settings:
         return self.name == "quick"
 
 
+# make bench-quick (CI's smoke run of every suite): the SMIB and wscc9, one seed, PINNs of 150
+# iterations (wscc9's time-marching: 10 a window), small timing budgets and sweeps; the ablations and
+# the configs for large systems left out, as in make bench, and no multi-machine identification.
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, max_query_s=5.0, seeds=(0,),
     pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
     case_pinn_options={"wscc9": {"max_iterations": 10, "max_seconds": None, "id_max_iterations": 100}},
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"), verdict_seeds=(0,),
-    verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9),
+    verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9), omit_marks=(ABLATION, LARGE_SYSTEMS), network_identify_cases=(),
     pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
 )
 # make bench: every suite on the SMIB and the three multi-machine cases within about an hour on 2

@@ -17,7 +17,7 @@ import pandas as pd
 from harness.analysis import GRID_QUERY, POINT_QUERY, fmt, label, ok
 from harness.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
 
-__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline_query", "headline_table", "verdict_table",
+__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "verdict_table",
            "verdicts"]
 
 # The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
@@ -28,12 +28,14 @@ RULE = (f"Ratio: the rival's median time over the PINN's (> 1: the PINN is faste
         f"faster only when the whole interval lies beyond {TIE_FACTOR:g}x, and only when every seed says so; "
         f"otherwise tie. The rival: the fastest point of a compiled classical solver's precision sweep at "
         f"least as accurate as that seed's PINN in the angles (centre-of-inertia relative on the networks) and "
-        f"the speeds, on that query and off the training points. Figures of the worst seed for the PINN.")
+        f"the speeds, on that query and off the training points; the PINN on its fastest query path there (its "
+        f"framework's evaluator or the compiled numba one). Figures of the worst seed for the PINN.")
 
 
-def headline_query(query: str) -> bool:
-    """Whether `query` is one of the README's (`HEADLINE` and the batches of 10,000 points)."""
-    return query in HEADLINE or str(query).startswith(("10000 single points",))
+def headline(v: pd.DataFrame) -> pd.Series:
+    """Which verdicts (rows of `verdicts`) are the README's: the queries of `HEADLINE` and the
+    batches of points."""
+    return v["query"].isin(HEADLINE) | (v["kind"] == "points batch")
 
 
 def verdicts(frames: dict) -> pd.DataFrame:
@@ -58,8 +60,8 @@ def verdicts(frames: dict) -> pd.DataFrame:
         ratios = g["ratio"] if "ratio" in g else pd.Series(np.nan, index=g.index)
         worst = g.loc[ratios.fillna(-math.inf).idxmin()]
         counts = ", ".join(f"{x} on {labels.count(x)} of {n}" for x in dict.fromkeys(labels))
-        out.append({"case": case, "pinn": pinn, "query": query, "verdict": overall, "seeds": n, "by seed": counts,
-                    "worst seed": int(worst["seed"]), "rival": worst.get("rival", ""),
+        out.append({"case": case, "pinn": pinn, "query": query, "kind": worst["kind"], "verdict": overall, "seeds": n, "by seed": counts,
+                    "worst seed": int(worst["seed"]), "path": worst.get("pinn_path", ""), "rival": worst.get("rival", ""),
                     "pinn_rel_l2_delta": worst["pinn_rel_l2_delta"], "pinn_rel_l2_omega": worst["pinn_rel_l2_omega"],
                     "rival_rel_l2_delta": worst.get("rival_rel_l2_delta", np.nan),
                     "rival_rel_l2_omega": worst.get("rival_rel_l2_omega", np.nan),
@@ -87,6 +89,7 @@ def _errors(row: pd.Series, side: str) -> str:
 
 def _table(v: pd.DataFrame, with_case: bool) -> pd.DataFrame:
     return pd.DataFrame([{**({"case": r["case"]} if with_case else {}), "query": r["query"], "PINN": r["pinn"],
+                          "PINN query path": str(r["path"] or "").replace("query=", "") or "-",
                           "verdict": f"{r['verdict']} ({r['by seed']})",
                           "ratio [95 % CI]": _ratio(r), "PINN ms": _ms(r["pinn_median_s"]),
                           "rival": r["rival"] or r["note"], "rival ms": _ms(r["rival_median_s"]),
@@ -102,11 +105,11 @@ def verdict_table(frames: dict) -> pd.DataFrame | None:
 
 
 def headline_table(frames: dict) -> pd.DataFrame | None:
-    """The verdicts of the README's queries (`HEADLINE` and the batches of 10,000 points), every case."""
+    """The verdicts of the README's queries (`headline`), every case."""
     v = verdicts(frames)
     if v.empty:
         return None
-    v = v[v["query"].map(headline_query)]
+    v = v[headline(v)]
     return None if v.empty else _table(v, with_case=True)
 
 

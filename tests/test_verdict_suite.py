@@ -11,7 +11,7 @@ from harness.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
 from harness.runs import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals, query_errors, verdict_queries
-from harness.suites.verdict import verdict
+from harness.suites.verdict import query_paths, verdict
 from harness.verdict_table import compare_runs, verdicts
 from solvers import SOLVERS, make_solver
 from systems.cases import SMIB_INFERENCE as CASE
@@ -20,7 +20,7 @@ from tests.conftest import require
 SETTINGS = replace(QUICK, cache_dir=None, verdict_seeds=(0, 1), verdict_rounds=2, verdict_pairs=4,
                    throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=30, points_distinct_p1=5,
                    verdict_rtols=(1e-2, 1e-4, 1e-6, 1e-8), verdict_gate=1.0)
-PINN = {"hidden_layers": 2, "width": 8, "n_f": 200, "max_iterations": 40, "query": "numba", "progress": False}
+PINN = {"hidden_layers": 2, "width": 8, "n_f": 200, "max_iterations": 40, "progress": False}
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +39,7 @@ def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_a
     assert {"30 single points, one call", "30 single points over 5 P1, one call"} <= set(queries)
     points = [r for r in rows if r["query"] == "30 single points over 5 P1, one call"]
     assert points and all(r["distinct_p1"] == 5 for r in points)
+    assert {r["pinn_path"] for r in rows} <= {"query=framework", "query=numba"}
     for r in rows:
         assert r["label"] != NO_RIVAL, r
         assert r["samples"] == len(r["pinn_samples_s"]) == len(r["rival_samples_s"]) == 8  # >= 7: the floor
@@ -84,6 +85,16 @@ def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate
     _matching_cache_clear()
     none = verdict(solver, CASE, replace(small, verdict_gate=1.0))
     assert all(r["label"] == NO_RIVAL and "no sweep point as accurate" in r["rivals_note"] for r in none)
+
+
+def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights():
+    require("jax-pinn")
+    solver = make_solver("jax-pinn", CASE, **{**PINN, "max_iterations": 2})
+    solver.fit()
+    paths = query_paths(solver)
+    assert set(paths) == {"query=framework", "query=numba"} and paths["query=framework"] is solver
+    t, P1 = np.linspace(0.0, CASE.t_final, 11), np.linspace(CASE.p1_min, CASE.p1_max, 3)
+    np.testing.assert_allclose(paths["query=numba"].solve(t, P1).delta, solver.solve(t, P1).delta, atol=1e-10)
 
 
 def test_query_errors_include_the_off_training_grid():

@@ -27,6 +27,7 @@ class Suite:
     sweeps: bool = False  # sweeps each adapter's precision: a config that is a point of the sweep repeats it
     trained_only: bool = False  # measures adapters that train only
     verdicts: bool = False  # measures the run's verdict PINNs only (`Settings.verdict_pinn`)
+    own_query_path: bool = False  # times every query path of a model itself: not run for a query variant
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""

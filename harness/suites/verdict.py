@@ -4,7 +4,8 @@ matched rival, timed paired and interleaved, with the ratio's 95 % interval and 
 For every seed of `Settings.verdict_seeds` (the unit's adapter is the first; the others are
 trained here, or loaded from the model cache) and every query (`harness.suites._matching.verdict_queries`):
 the PINN's accuracy on that query (`harness.suites._matching.query_errors`, off its training points
-included) and its rival (`harness.suites._matching.Rivals.best`: the fastest point of a compiled classical
+included), its fastest query path there (`query_paths`: the framework's evaluator or the compiled
+numba one, the same weights) and its rival (`harness.suites._matching.Rivals.best`: the fastest point of a compiled classical
 adapter's precision sweep at least as accurate in the angles and the speeds). Then
 `Settings.verdict_rounds` rounds, each over every query and seed in turn, of
 `Settings.verdict_pairs` interleaved pairs of samples (`harness.paired.interleaved`): the samples
@@ -18,8 +19,10 @@ from __future__ import annotations
 
 import math
 import sys
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -38,7 +41,7 @@ from harness.suites._matching import Query, Rivals, off_training_errors, query_e
 from solvers.base import AbstractSolver
 from systems.cases import Case
 
-__all__ = ["verdict"]
+__all__ = ["query_paths", "verdict"]
 
 _RIVALS: dict[tuple[str, int], Rivals] = {}  # one per case in a process: accuracies measured once
 
@@ -67,6 +70,50 @@ def _seeds(solver: AbstractSolver, settings: Settings) -> dict[int, tuple[Abstra
     return out
 
 
+def query_paths(solver: AbstractSolver) -> dict[str, AbstractSolver]:
+    """The ways of querying the fitted `solver`'s model: path text ("query=numba") -> an adapter
+    answering from the same weights, one per variant of its adapter made only of options that
+    change how a model is queried (`VARIANTS` within `QUERY_OPTIONS`) and the path of none of
+    them (those options at their defaults); the weights are passed by `save` / `load` (`can_save`).
+    Just {its own options: solver} for an adapter without such variants."""
+    cls = type(solver)
+    variants = [dict(v) for v in cls.VARIANTS if set(v) <= cls.QUERY_OPTIONS]
+    keys = sorted({key for variant in variants for key in variant})
+    own = ",".join(f"{key}={solver.options[key]}" for key in keys)
+    if not variants or not cls.can_save:
+        return {own: solver}
+    out = {}
+    with tempfile.TemporaryDirectory() as folder:
+        saved = Path(folder) / "model"
+        solver.save(saved)
+        for variant in ({}, *variants):
+            options = {**solver.options, **{key: cls.OPTIONS[key] for key in keys}, **variant}
+            path = ",".join(f"{key}={options[key]}" for key in keys)
+            if path == own:
+                out[path] = solver
+            else:
+                other = cls(solver.case, solver.config, **options)
+                other.load(saved)
+                out[path] = other
+    return out
+
+
+def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> str:
+    """The path of `paths` whose warm call on `query` is fastest (the least of three after one
+    untimed call)."""
+    best: dict[str, float] = {}
+    for path, solver in paths.items():
+        call = query.call(solver)
+        call()
+        times = []
+        for _ in range(3):
+            start = time.perf_counter()
+            call()
+            times.append(time.perf_counter() - start)
+        best[path] = min(times)
+    return min(best, key=best.__getitem__)
+
+
 def _warm_calls(call: Callable[[], object]) -> int:
     """Call `call` once, untimed (compiling what it needs), and return `calls_per_sample` of it."""
     start = time.perf_counter()
@@ -81,12 +128,15 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     seeds = _seeds(solver, settings)
     rivals = _rivals(case, settings)
     plans: list[dict] = []
+    paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
     for query in verdict_queries(case, settings):
-        for seed, (pinn, fit_s, iterations) in seeds.items():
-            off = off_training_errors(pinn, case)
-            delta, omega = query_errors(pinn, case, query, off)
+        for seed, (own, fit_s, iterations) in seeds.items():
+            off = off_training_errors(own, case)
+            delta, omega = query_errors(own, case, query, off)
+            path = _fastest_path(paths[seed], query)
+            pinn = paths[seed][path]
             base = {"seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
-                    "distinct_p1": query.distinct_p1, "t1_s": float(query.t[0]) if query.kind == "single point"
+                    "distinct_p1": query.distinct_p1, "pinn_path": path, "t1_s": float(query.t[0]) if query.kind == "single point"
                     else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
                     "fit_s": fit_s, "fit_iterations": iterations}
             gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
@@ -128,4 +178,4 @@ def _row(plan: dict, settings: Settings, rivals: Rivals) -> dict:
             "ratio": ratio, "ratio_low": low, "ratio_high": high, "label": verdict_label(low, high)}
 
 
-SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True)
+SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True, own_query_path=True)
