@@ -61,7 +61,7 @@ def verdicts(frames: dict) -> pd.DataFrame:
         worst = g.loc[ratios.fillna(-math.inf).idxmin()]
         counts = ", ".join(f"{x} on {labels.count(x)} of {n}" for x in dict.fromkeys(labels))
         out.append({"case": case, "pinn": pinn, "query": query, "kind": worst["kind"], "verdict": overall, "seeds": n, "by seed": counts,
-                    "worst seed": int(worst["seed"]), "path": worst.get("pinn_path", ""), "rival": worst.get("rival", ""),
+                    "worst seed": int(worst["pinn_seed"]), "path": worst.get("pinn_path", ""), "rival": worst.get("rival", ""),
                     "pinn_rel_l2_delta": worst["pinn_rel_l2_delta"], "pinn_rel_l2_omega": worst["pinn_rel_l2_omega"],
                     "rival_rel_l2_delta": worst.get("rival_rel_l2_delta", np.nan),
                     "rival_rel_l2_omega": worst.get("rival_rel_l2_omega", np.nan),

@@ -35,7 +35,7 @@ def rows():
 def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_and_a_label(rows):
     queries = [q.name for q in verdict_queries(CASE, SETTINGS)]
     assert [r["query"] for r in rows] == [q for q in queries for _ in (0, 1)]
-    assert [r["seed"] for r in rows] == [0, 1] * len(queries)
+    assert [r["pinn_seed"] for r in rows] == [0, 1] * len(queries)
     assert {"30 single points, one call", "30 single points over 5 P1, one call"} <= set(queries)
     points = [r for r in rows if r["query"] == "30 single points over 5 P1, one call"]
     assert points and all(r["distinct_p1"] == 5 for r in points)
@@ -61,7 +61,7 @@ def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_poi
 
 
 def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
-    by_seed = {r["seed"]: r["pinn_rel_l2_delta"] for r in rows if r["query"] == "grid 100x201"}
+    by_seed = {r["pinn_seed"]: r["pinn_rel_l2_delta"] for r in rows if r["query"] == "grid 100x201"}
     assert by_seed[0] != by_seed[1]
     frames = {"verdict": _frame(rows)}
     table = verdicts(frames)

@@ -122,20 +122,21 @@ def _warm_calls(call: Callable[[], object]) -> int:
 
 
 def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
-    """One row per query and seed: the PINN's errors (angles, speeds), its rival and the rival's
+    """One row per query and seed (`pinn_seed`; the row's `seed` stays the unit's, whose rows
+    these are): the PINN's errors (angles, speeds), its rival and the rival's
     errors, the paired samples (s per call) of both, their medians, the ratio rival / PINN with its
     95 % interval, the label and the seed's training seconds and iterations."""
     seeds = _seeds(solver, settings)
     rivals = _rivals(case, settings)
     plans: list[dict] = []
     paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
+    off = {seed: off_training_errors(pinn, case) for seed, (pinn, _, _) in seeds.items()}
     for query in verdict_queries(case, settings):
         for seed, (own, fit_s, iterations) in seeds.items():
-            off = off_training_errors(own, case)
-            delta, omega = query_errors(own, case, query, off)
+            delta, omega = query_errors(own, case, query, off[seed])
             path = _fastest_path(paths[seed], query)
             pinn = paths[seed][path]
-            base = {"seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
+            base = {"pinn_seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
                     "distinct_p1": query.distinct_p1, "pinn_path": path, "t1_s": float(query.t[0]) if query.kind == "single point"
                     else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
                     "fit_s": fit_s, "fit_iterations": iterations}
