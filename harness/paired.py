@@ -20,7 +20,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NO_RIVAL", "PINN_FASTER", "SAMPLE_S", "TIE", "TIE_FACTOR", "calls_per_sample",
-           "interleaved", "ratio_interval", "verdict_label"]
+           "interleaved", "ratio_interval", "verdict_label", "warm_call_s"]
 
 SAMPLE_S = 2e-3  # a sample lasts at least this long (s): fast calls are timed in blocks
 CONFIDENCE = 0.95
@@ -31,12 +31,24 @@ PINN_FASTER, CLASSICAL_FASTER, TIE = "PINN faster", "classical faster", "tie"
 NO_RIVAL = "no rival"  # no sweep point as accurate as the PINN, or every such point out of time
 
 
-def calls_per_sample(first_call_s: float) -> int:
-    """How many back-to-back calls make one sample of a call that took `first_call_s` seconds
-    untimed: enough to last `SAMPLE_S`, at least 1."""
-    if not math.isfinite(first_call_s) or first_call_s <= 0:
+def calls_per_sample(call_s: float) -> int:
+    """How many back-to-back calls make one sample of a call that takes `call_s` seconds warm:
+    enough to last `SAMPLE_S`, at least 1."""
+    if not math.isfinite(call_s) or call_s <= 0:
         return 1
-    return max(1, math.ceil(SAMPLE_S / first_call_s))
+    return max(1, math.ceil(SAMPLE_S / call_s))
+
+
+def warm_call_s(fn: Callable[[], Any], calls: int = 3) -> float:
+    """Seconds of one warm call of `fn`: the least of `calls` timed calls after one untimed call
+    (compilation, caches and lazy set-up paid by it)."""
+    fn()
+    times = []
+    for _ in range(calls):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
 
 
 def _sample(fn: Callable[[], Any], calls: int) -> float:
@@ -49,8 +61,11 @@ def _sample(fn: Callable[[], Any], calls: int) -> float:
 def interleaved(a: Callable[[], Any], b: Callable[[], Any], pairs: int, calls_a: int = 1,
                 calls_b: int = 1) -> tuple[list[float], list[float]]:
     """`pairs` samples (s per call) of each of `a` and `b`, taken alternately: a b, b a, a b, ...
-    (the order swapped every pair, so neither always runs right after the other). Each sample is
-    the mean over `calls_a` (`calls_b`) calls. Both are assumed warm (called before)."""
+    (the order swapped every pair, so neither always runs right after the other), after one
+    untimed call of each (the caches warm again for these two after whatever ran before). Each
+    sample is the mean over `calls_a` (`calls_b`) calls."""
+    a()
+    b()
     samples_a, samples_b = [], []
     for i in range(pairs):
         if i % 2 == 0:

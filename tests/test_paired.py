@@ -15,6 +15,7 @@ from harness.paired import (
     interleaved,
     ratio_interval,
     verdict_label,
+    warm_call_s,
 )
 
 
@@ -22,7 +23,13 @@ def test_interleaved_alternates_the_two_calls_and_swaps_their_order_every_pair()
     order = []
     a, b = interleaved(lambda: order.append("a"), lambda: order.append("b"), pairs=4, calls_a=2, calls_b=1)
     assert len(a) == len(b) == 4 and all(s >= 0 for s in a + b)
-    assert order == ["a", "a", "b", "b", "a", "a", "a", "a", "b", "b", "a", "a"]
+    # one untimed call of each first, then a a b | b a a | a a b | b a a
+    assert order == ["a", "b", "a", "a", "b", "b", "a", "a", "a", "a", "b", "b", "a", "a"]
+
+
+def test_a_warm_call_is_timed_after_an_untimed_one():
+    calls = []
+    assert warm_call_s(lambda: calls.append(1), calls=3) >= 0 and len(calls) == 4
 
 
 def test_a_fast_call_is_timed_in_blocks_that_last_a_sample():

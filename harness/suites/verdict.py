@@ -20,8 +20,6 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +32,7 @@ from harness.paired import (
     interleaved,
     ratio_interval,
     verdict_label,
+    warm_call_s,
 )
 from harness.runs import Settings
 from harness.suites._base import Suite
@@ -99,26 +98,9 @@ def query_paths(solver: AbstractSolver) -> dict[str, AbstractSolver]:
 
 
 def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> str:
-    """The path of `paths` whose warm call on `query` is fastest (the least of three after one
-    untimed call)."""
-    best: dict[str, float] = {}
-    for path, solver in paths.items():
-        call = query.call(solver)
-        call()
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            call()
-            times.append(time.perf_counter() - start)
-        best[path] = min(times)
-    return min(best, key=best.__getitem__)
-
-
-def _warm_calls(call: Callable[[], object]) -> int:
-    """Call `call` once, untimed (compiling what it needs), and return `calls_per_sample` of it."""
-    start = time.perf_counter()
-    call()
-    return calls_per_sample(time.perf_counter() - start)
+    """The path of `paths` whose warm call on `query` is fastest (`warm_call_s`)."""
+    seconds = {path: warm_call_s(query.call(solver)) for path, solver in paths.items()}
+    return min(seconds, key=seconds.__getitem__)
 
 
 def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
@@ -148,7 +130,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     for plan in plans:
         if plan["rival"] is not None:
             pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(plan["rival"].solver())
-            plan["calls"] = (_warm_calls(pinn_call), _warm_calls(rival_call))
+            plan["calls"] = (calls_per_sample(warm_call_s(pinn_call)), calls_per_sample(warm_call_s(rival_call)))
     for _ in range(settings.verdict_rounds):
         for plan in plans:
             if plan["rival"] is None:
