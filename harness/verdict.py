@@ -159,6 +159,6 @@ def verdict_lines(frames: dict) -> list[str]:
     if sentence:
         lines.append(sentence)
     trained_fit = ok(frames.get("fit"))
-    if not trained_fit.empty and trained(trained_fit).any():
+    if lines and not trained_fit.empty and trained(trained_fit).any():  # a run of the ladder's suites
         lines.append("Training cost is apart from these query times: see the break-even table.")
     return lines

@@ -32,7 +32,8 @@ from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERE
 # precision sweep: work-precision recorded nothing for it). Recorded once by running that code, and
 # recorded again (commit of issue 21) when make bench deliberately changed: the verdict suite's units
 # of the JAX PINN with its compiled query path, and the multi-machine PINNs' budgets in iterations
-# per window (`Settings.case_pinn_options`) where they were seconds.
+# per window (`Settings.case_pinn_options`) where they were seconds; and bench-quick's cuts (no
+# ablations, configs for large systems or sweep points such as `tight`, no network identification).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {
