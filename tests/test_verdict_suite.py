@@ -24,12 +24,17 @@ PINN = {"hidden_layers": 2, "width": 8, "n_f": 200, "max_iterations": 40, "progr
 
 
 @pytest.fixture(scope="module")
-def rows():
+def pinn():
     require("jax-pinn")
     require("numba-rk")
     solver = make_solver("jax-pinn", CASE, **PINN)
     solver.fit()
-    return verdict(solver, CASE, SETTINGS)
+    return solver
+
+
+@pytest.fixture(scope="module")
+def rows(pinn):
+    return verdict(pinn, CASE, SETTINGS)
 
 
 def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_and_a_label(rows):
@@ -73,11 +78,8 @@ def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
     assert (same["agreement"] == "agree").all()
 
 
-def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate_point_says_so(monkeypatch):
-    require("jax-pinn")
-    require("numba-rk")
-    solver = make_solver("jax-pinn", CASE, **{**PINN, "max_iterations": 2})
-    solver.fit()
+def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate_point_says_so(pinn, monkeypatch):
+    solver = pinn
     small = replace(SETTINGS, verdict_seeds=(0,), throughput_sizes=(), points_batch=0)
     gated = verdict(solver, CASE, replace(small, verdict_gate=1e-12))
     assert gated and all(r["label"] == CLASSICAL_FASTER and r["gate"] is False for r in gated)
@@ -87,10 +89,8 @@ def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate
     assert all(r["label"] == NO_RIVAL and "no sweep point as accurate" in r["rivals_note"] for r in none)
 
 
-def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights():
-    require("jax-pinn")
-    solver = make_solver("jax-pinn", CASE, **{**PINN, "max_iterations": 2})
-    solver.fit()
+def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights(pinn):
+    solver = pinn
     paths = query_paths(solver)
     assert set(paths) == {"query=framework", "query=numba"} and paths["query=framework"] is solver
     t, P1 = np.linspace(0.0, CASE.t_final, 11), np.linspace(CASE.p1_min, CASE.p1_max, 3)
