@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,3 +120,29 @@ def _matching_cache_clear():
     from harness.suites import verdict as module
 
     module._RIVALS.clear()
+
+
+def test_two_runs_agree_flip_or_tie_in_one_and_compare_exits_1_on_a_flip(monkeypatch):
+    import argparse
+
+    import pandas as pd
+
+    from harness import compare
+
+    def run(*labels):
+        return {"verdict": pd.DataFrame([
+            {"suite": "verdict", "case": "wscc9", "solver": "jax-pinn", "config": "marching", "variant": "",
+             "status": "ok", "query": f"q{i}", "kind": "grid", "pinn_seed": 0, "label": label,
+             "ratio": ratio, "ratio_low": ratio / 1.1, "ratio_high": ratio * 1.1,
+             "pinn_rel_l2_delta": 1e-4, "pinn_rel_l2_omega": 1e-3}
+            for i, (label, ratio) in enumerate(labels)])}
+
+    a = run(("PINN faster", 3.0), ("tie", 1.0), ("classical faster", 0.3))
+    b = run(("classical faster", 0.3), ("PINN faster", 3.0), ("classical faster", 0.4))
+    assert compare_runs(a, b)["agreement"].tolist() == ["FLIP", "tie in one run", "agree"]
+    runs = {"A": a, "B": b}
+    monkeypatch.setattr(compare, "_frames", lambda directory: runs[str(directory)])
+    args = argparse.Namespace(run_a=Path("A"), run_b=Path("B"), update_readme=None)
+    assert compare.cmd_compare(args) == 1
+    runs["B"] = a
+    assert compare.cmd_compare(args) == 0
