@@ -22,6 +22,9 @@ import pandas as pd
 __all__ = ["Labels", "split_items"]
 
 SEPARATOR = " · "
+# Columns whose text names a spec of another adapter than the row's own (the verdict suite's rival,
+# "numba-rk [rk4, parallel=True, dt=0.2]"): their specs are named too, every option shown.
+SPEC_COLUMNS = ("rival",)
 
 
 def split_items(text: str) -> list[str]:
@@ -70,6 +73,11 @@ class Labels:
             variant = df["variant"] if "variant" in df else pd.Series("", index=df.index)
             for solver, config, text in dict.fromkeys(zip(df["solver"], df["config"], variant.fillna("").astype(str))):
                 variants.setdefault((str(solver), str(config)), []).append(set(split_items(text)))
+            for column in (c for c in SPEC_COLUMNS if c in df):
+                for text in dict.fromkeys(df[column].dropna().astype(str)):
+                    named = re.match(r"([\w.-]+) \[([^,\]]+)", text)
+                    if named:
+                        variants.setdefault((named.group(1), named.group(2).strip()), []).append(set())
         self.shared = {spec: set.intersection(*sets) for spec, sets in variants.items()}
         names = sorted({solver for solver, _ in variants}, key=len, reverse=True)  # longest first
         self._key = re.compile(rf"(?<![\w-])({'|'.join(map(re.escape, names))}) \[([^\[\]]*(?:\[[^\[\]]*\][^\[\]]*)*)\]"

@@ -109,3 +109,10 @@ def test_the_report_writes_a_page_per_case_and_replaces_only_its_own_pages(tmp_p
     meta = json.loads((results / "metadata.json").read_text())
     assert text == f"intro\n{README_START}{readme_block(rows, meta, readme, pages, results)}{README_END}\n"
 
+
+
+def test_a_verdict_s_rival_is_named_like_a_spec_of_the_rows_every_option_shown():
+    rows = _frame(("jax-pinn", "marching", "max_iterations=100")).assign(rival="numba-rk [rk4, parallel=True, dt=0.2]")
+    names = Labels({"verdict": rows})
+    assert names("numba-rk [rk4, parallel=True, dt=0.2]") == "numba-rk rk4 · parallel · dt=0.2"
+    assert names("jax-pinn [marching, max_iterations=100]") == "jax-pinn marching"
