@@ -39,10 +39,14 @@ def calls_per_sample(call_s: float) -> int:
     return max(1, math.ceil(SAMPLE_S / call_s))
 
 
-def warm_call_s(fn: Callable[[], Any], calls: int = 3) -> float:
+def warm_call_s(fn: Callable[[], Any], calls: int = 3, slow_s: float = math.inf) -> float:
     """Seconds of one warm call of `fn`: the least of `calls` timed calls after one untimed call
-    (compilation, caches and lazy set-up paid by it)."""
+    (compilation, caches and lazy set-up paid by it); of one timed call when the untimed one took
+    longer than `slow_s`."""
+    start = time.perf_counter()
     fn()
+    if time.perf_counter() - start > slow_s:
+        calls = 1
     times = []
     for _ in range(calls):
         start = time.perf_counter()

@@ -13,7 +13,6 @@ times <= t1): a single number at one time can be near zero and is no measure.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -21,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from harness import metrics
+from harness.paired import warm_call_s
 from harness.runs import Settings
 from harness.suites.accuracy import off_training_grid
 from harness.suites.latency import queries
@@ -196,36 +196,27 @@ class Rivals:
             self._errors[key] = query_errors(candidate.solver(), self.case, query, off)
         return self._errors[key]
 
-    def first_call_s(self, candidate: Candidate, query: Query) -> float:
-        """Seconds of one warm call of `candidate` on `query`: after a first, untimed call (compiling
-        whatever the query's shapes need), the least of three calls, or one when the first took
-        over `SLOW_S`."""
+    def warm_call_s(self, candidate: Candidate, query: Query) -> float:
+        """Seconds of one warm call of `candidate` on `query` (`harness.paired.warm_call_s`: one
+        timed call only when the untimed first took over `SLOW_S`), measured once."""
         key = (candidate.label, query.name)
         if key not in self._seconds:
-            call = query.call(candidate.solver())
-            start = time.perf_counter()
-            call()
-            times = [time.perf_counter() - start]
-            for _ in range(1 if times[0] > SLOW_S else 3):
-                start = time.perf_counter()
-                call()
-                times.append(time.perf_counter() - start)
-            self._seconds[key] = min(times[1:])
+            self._seconds[key] = warm_call_s(query.call(candidate.solver()), slow_s=SLOW_S)
         return self._seconds[key]
 
     def best(self, query: Query, delta: float, omega: float) -> tuple[Candidate | None, list[str]]:
         """The rival on `query` of a PINN with errors (`delta`, `omega`): of each family the
         coarsest sweep point at least as accurate in both (its cheapest, as a coarser point takes
-        fewer steps), the fastest of these by `first_call_s`; and notes on the families without
+        fewer steps), the fastest of these by `warm_call_s`; and notes on the families without
         one (no point as accurate, or its call over `settings.max_query_s`: out of time)."""
         picks, notes = [], []
         for family, points in self.sweeps.items():
             match = next((c for c in points if all(e <= need for e, need in zip(self.errors(c, query), (delta, omega)))),
                          None)
             if match is None:
-                notes.append(f"{points[0].label.split(' [')[0]} {family[1]}: no sweep point as accurate")
+                notes.append(f"{family[0]} {family[1]}: no sweep point as accurate")
                 continue
-            seconds = self.first_call_s(match, query)
+            seconds = self.warm_call_s(match, query)
             if seconds > self.settings.max_query_s:
                 notes.append(f"{match.label}: skipped, out of time ({seconds:.3g} s a call, over "
                              f"{self.settings.max_query_s:g} s)")
