@@ -431,13 +431,31 @@ def _jit_variant(py_func, variant: str, **flags):
     return _name_for_cache(njit(cache=True, error_model="numpy", **flags)(py_func), py_func.__qualname__)
 
 
-def _make_batch(method: int, sens: bool, parallel: bool, n: int):
+def _make_trajectory(method: int, sens: bool, n: int):
+    """One trajectory for generator-1 power p1 (p.u.; the other generators at their p_m, as
+    `Case.powers`), compiled for one method, `sens` and n machines: `(t, order, p1, system,
+    coupled, options, out, index) -> status`, the states at t[order] written into out[:, index]
+    (the integrators' layout), `options` packed as `kernel`'s."""
     if method == RK4:
         rk4 = _make_rk4(sens, n)
-        adaptive = None
+
+        def trajectory(t, order, p1, system, coupled, options, out, index):
+            P = system[:, P_M].copy()
+            P[0] = p1
+            return rk4(t, order, P, system, coupled, options[2], int(options[3]), out, index)
     else:
         adaptive = _make_adaptive(method, sens, n)
-        rk4 = None
+
+        def trajectory(t, order, p1, system, coupled, options, out, index):
+            P = system[:, P_M].copy()
+            P[0] = p1
+            return adaptive(t, order, P, system, coupled, options[0], options[1], int(options[3]), out, index)
+
+    return _jit_variant(trajectory, f"{method}_{int(sens)}_{n}")
+
+
+def _make_batch(method: int, sens: bool, parallel: bool, n: int):
+    trajectory = _make_trajectory(method, sens, n)
 
     def batch(t, P1, system, options):
         n_b, n_t = P1.size, t.size
@@ -447,17 +465,11 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
                 ordered = False
                 break
         order = np.arange(n_t) if ordered else np.argsort(t, kind="mergesort")
-        rtol, atol, dt, max_steps = options[0], options[1], options[2], int(options[3])
         coupled = _is_coupled(system, n)
         out = np.empty((2 + (4 * n if sens else 0), n_b, n_t, n))
         status = np.zeros(n_b, np.int64)
         for b in prange(n_b):
-            P = system[:, P_M].copy()  # Case.powers: generator 1 gets P1, the others p_m
-            P[0] = P1[b]
-            if method == RK4:
-                status[b] = rk4(t, order, P, system, coupled, dt, max_steps, out, b)
-            else:
-                status[b] = adaptive(t, order, P, system, coupled, rtol, atol, max_steps, out, b)
+            status[b] = trajectory(t, order, P1[b], system, coupled, options, out, b)
         for b in range(n_b):
             if status[b] != OK:
                 return out, b, status[b]

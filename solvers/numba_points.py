@@ -14,33 +14,21 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import OK, P_M, RK4, _is_coupled, _jit_variant, _make_adaptive, _make_rk4
+from solvers.numba_kernels import OK, _is_coupled, _jit_variant, _make_trajectory
 
 __all__ = ["points_kernel"]
 
 
 def _make_points(method: int, parallel: bool, n: int):
-    if method == RK4:
-        rk4 = _make_rk4(False, n)
-        adaptive = None
-    else:
-        adaptive = _make_adaptive(method, False, n)
-        rk4 = None
+    trajectory = _make_trajectory(method, False, n)
 
     def points(t, order, starts, P1, system, options):
         n_g = P1.size
-        rtol, atol, dt, max_steps = options[0], options[1], options[2], int(options[3])
         coupled = _is_coupled(system, n)
         out = np.empty((2, 1, t.size, n))  # the integrators' (block, trajectory, time, machine)
         status = np.zeros(n_g, np.int64)
         for g in prange(n_g):
-            P = system[:, P_M].copy()  # Case.powers: generator 1 gets P1, the others p_m
-            P[0] = P1[g]
-            pairs = order[starts[g]:starts[g + 1]]
-            if method == RK4:
-                status[g] = rk4(t, pairs, P, system, coupled, dt, max_steps, out, 0)
-            else:
-                status[g] = adaptive(t, pairs, P, system, coupled, rtol, atol, max_steps, out, 0)
+            status[g] = trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out, 0)
         for g in range(n_g):
             if status[g] != OK:
                 return out[:, 0], g, status[g]
