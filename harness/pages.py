@@ -39,9 +39,10 @@ def _source(results: Path | str, start: Path | str = ".") -> str:
 
 
 def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: str = "###") -> str:
-    """The run's line and wall time, then per case a heading of `level` that links its page
-    (`pages`: the pages' folder relative to where the block is read, "" beside them), the options
-    its names leave out and its verdicts; `source` names the rows."""
+    """The run's line and wall time, the verdict table (verdict suite) if the run has one, then per
+    case a heading of `level` that links its page (`pages`: the pages' folder relative to where the
+    block is read, "" beside them), the options its names leave out and, only in a run without
+    verdicts, the latency suite's single-timing sentences; `source` names the rows."""
     frames = suite_frames(rows)
     prefix = f"{pages.rstrip('/')}/" if pages else ""
     out = [header(meta) + work_minutes(rows)]
@@ -51,7 +52,9 @@ def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: 
                    f"{Labels(frames).table(head).to_markdown(index=False)}\n\n"
                    f"![verdicts]({prefix}figures/verdicts.png)\n\n")
     for name, own in case_sections(frames):
-        out.append(f"{level} [{name}]({prefix}{name}.md)\n\n" + verdict_markdown(own, Labels(own), level=None))
+        # with verdicts, a case's single-timing sentences stay on its page (they are not verdicts)
+        body = Labels(own).note() + "\n\n" if head is not None else verdict_markdown(own, Labels(own), level=None)
+        out.append(f"{level} [{name}]({prefix}{name}.md)\n\n" + body.lstrip("\n"))
     if scaling_markdown(frames):
         out.append(f"{level} [Scaling]({prefix}scaling.md)\n\nCost, memory and accuracy against the number of "
                    "machines.\n\n")

@@ -15,7 +15,7 @@ from harness.suites import identification_case
 from harness.verdict import verdict_lines
 from systems.cases import CASES
 
-__all__ = ["case_sections", "header", "scaling_labels", "scaling_markdown", "section_markdown",
+__all__ = ["LADDER_HEADING", "case_sections", "header", "scaling_labels", "scaling_markdown", "section_markdown",
            "suite_frames", "verdict_markdown", "work_minutes"]
 
 
@@ -106,13 +106,17 @@ def section_markdown(name: str, frames: dict, tables: dict, level: str = "###", 
                         for title, table in tables.values()))
 
 
+# The ladder's sentences time each side once, in the latency suite: not the verdict suite's verdicts.
+LADDER_HEADING = "Fastest of each side in the latency suite (single timings, not verdicts)"
+
+
 def verdict_markdown(frames: dict, labels: Labels | None = None, level: str | None = "###") -> str:
     """The note on the options left out of the names, then the verdict sentences of a case as a
     list, under a heading of `level` (None: no heading); "" for a case with neither."""
     labels = labels or Labels(frames)
     note = labels.note()
     lines = verdict_lines(frames)
-    head = f"{level} Verdict of this case\n\n" if lines and level else ""
+    head = f"{level} {LADDER_HEADING}\n\n" if lines and level else ""
     return ((f"{note}\n\n" if note else "")
             + (head + "".join(f"- {labels.text(line, '`{}`')}\n" for line in lines) + "\n" if lines else ""))
 

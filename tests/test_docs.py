@@ -13,6 +13,7 @@ from harness.cli import README_END, README_START, main
 from harness.compare import COMPARE_END, COMPARE_START, compare_block
 from harness.labels import Labels, split_items
 from harness.pages import GENERATED, readme_block, write_pages
+from harness.sections import LADDER_HEADING
 from harness.report import write_report
 from harness.store import RowStore
 
@@ -35,6 +36,21 @@ def test_the_readme_verdicts_are_what_the_report_writes_from_the_landed_rows():
     meta = json.loads((results / "metadata.json").read_text(encoding="utf-8"))
     pages = ROOT / re.search(r"\]\(([^)]+)/[^/)]+\.md\)", block).group(1)  # the folder its case pages are in
     assert block == readme_block(rows, meta, ROOT / "README.md", pages, results)
+
+
+def test_a_readme_block_with_verdicts_leaves_the_single_timing_sentences_to_the_case_pages():
+    """The README's front door shows the matched, repeated verdicts only: the latency suite's
+    sentences (one timing a side) would contradict them, so they stay on the case pages under a
+    heading that says what they are."""
+    results = ROOT / "results"
+    rows = RowStore(results, create=False).read().rows
+    meta = json.loads((results / "metadata.json").read_text(encoding="utf-8"))
+    assert {row["suite"] for row in rows} >= {"verdict", "latency"}
+    block = readme_block(rows, meta, ROOT / "README.md", ROOT / "docs" / "results", results)
+    assert "### Verdicts at matched accuracy" in block
+    assert "fastest PINN" not in block and LADDER_HEADING not in block
+    page = (ROOT / "docs" / "results" / "wscc9.md").read_text(encoding="utf-8")
+    assert f"## {LADDER_HEADING}" in page and "fastest PINN" in page
 
 
 def test_the_readme_comparison_of_two_runs_is_what_compare_writes():

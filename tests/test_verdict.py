@@ -18,7 +18,7 @@ from harness.analysis import (
     ladder,
 )
 from harness.report import write_report
-from harness.sections import suite_frames
+from harness.sections import LADDER_HEADING, suite_frames
 from harness.verdict import crossover, ladder_table, verdict_lines
 
 BASE = {"case": "smib-inference", "threads": 2, "status": "ok"}
@@ -94,7 +94,7 @@ def test_verdict_sentences_name_the_winner_of_each_query(tmp_path):
     assert "classical wins: numba-rk [tight] 0.02 ms" not in lines[1] and "the PINN wins, 2x faster" in lines[1]
     assert "cheaper below t1 = 5 s" in lines[2]
     markdown = write_report(_rows(), tmp_path, {"threads": 2}, plots=True)
-    assert "### Verdict of this case" in markdown and "Who wins each query" in markdown
+    assert f"### {LADDER_HEADING}" in markdown and "Who wins each query" in markdown
     assert (tmp_path / "crossover.png").exists()
 
 
