@@ -13,8 +13,8 @@ from harness.cli import README_END, README_START, main
 from harness.compare import COMPARE_END, COMPARE_START, compare_block
 from harness.labels import Labels, split_items
 from harness.pages import GENERATED, readme_block, write_pages
-from harness.sections import LADDER_HEADING
 from harness.report import write_report
+from harness.sections import LADDER_HEADING
 from harness.store import RowStore
 
 ROOT = Path(__file__).resolve().parent.parent
