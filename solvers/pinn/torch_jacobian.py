@@ -42,7 +42,7 @@ from solvers.pinn.network import (
 )
 from solvers.pinn.problems import Problem
 
-__all__ = ["taylor_jacobian", "taylor_residuals"]
+__all__ = ["taylor_jacobian", "taylor_loss_and_grad", "taylor_residuals"]
 
 Streams = list[torch.Tensor | None]  # a tensor and its t-derivatives of order 1, 2 (None: zero)
 
@@ -138,7 +138,9 @@ def _block_jacobian(jac: torch.Tensor, block: Block) -> None:
     points, columns = r.shape
     wanted = [z for _, zs in passes for z in zs if z is not None] + ([] if log_md is None else [log_md])
     for c in range(columns):
-        grads = iter(torch.autograd.grad(r[:, c].sum(), wanted, retain_graph=c < columns - 1, allow_unused=True))
+        pick = torch.zeros_like(r)  # the gradient of column c summed over the points
+        pick[:, c] = 1.0
+        grads = iter(torch.autograd.grad(r, wanted, pick, retain_graph=c < columns - 1, allow_unused=True))
         offset = 0
         for inputs, zs in passes:
             n_in, n_out = inputs[0].shape[-1], zs[0].shape[-1]
@@ -168,6 +170,18 @@ def taylor_residuals(arch: Architecture, theta: torch.Tensor, data: dict, ops: O
     return torch.cat([r.detach().reshape(-1) for r, _, _ in blocks])
 
 
+def taylor_loss_and_grad(arch: Architecture, theta: torch.Tensor, data: dict, ops: Ops, physics: Physics,
+                         problem: Problem) -> tuple[torch.Tensor, torch.Tensor]:
+    """The loss (the sum of squares of `taylor_residuals`, a 0-d tensor) and its gradient
+    (n_params,), by one reverse pass through the same forward pass; `ops` as there."""
+    with torch.enable_grad():
+        variable = theta.detach().requires_grad_(True)
+        blocks = _residual_blocks(arch, arch.split(variable), data, ops, physics, problem)
+        value = torch.stack([torch.sum(r * r) for r, _, _ in blocks]).sum()
+        (grad,) = torch.autograd.grad(value, variable)
+    return value.detach(), grad
+
+
 def taylor_jacobian(arch: Architecture, theta: torch.Tensor, data: dict, ops: Ops, physics: Physics,
                     problem: Problem) -> torch.Tensor:
     """d residual_vector / d theta, (n_residuals, n_params), as `network.jacobian_blocks`; `ops`
@@ -176,8 +190,9 @@ def taylor_jacobian(arch: Architecture, theta: torch.Tensor, data: dict, ops: Op
     with torch.enable_grad():
         blocks = _residual_blocks(arch, arch.split(theta.detach().requires_grad_(True)), data, ops, physics,
                                   problem)
-        jac = theta.new_zeros(sum(r.numel() for r, _, _ in blocks), arch.n_params)
-        row = 0
+    jac = theta.new_zeros(sum(r.numel() for r, _, _ in blocks), arch.n_params)
+    row = 0
+    with torch.no_grad():  # the reverse passes need no graph of their own, nor the outer products
         for block in blocks:
             points, columns = block[0].shape
             _block_jacobian(jac[row:row + points * columns].view(points, columns, -1), block)
