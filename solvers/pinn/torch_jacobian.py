@@ -44,7 +44,7 @@ from solvers.pinn.problems import Problem
 
 __all__ = ["taylor_jacobian", "taylor_loss_and_grad", "taylor_residuals"]
 
-Streams = list[torch.Tensor | None]  # a tensor and its t-derivatives of order 1, 2 (None: zero)
+Streams = list[torch.Tensor]  # a tensor and its t-derivatives of order 1, 2
 
 
 def _tanh_streams(z: Streams) -> Streams:
@@ -56,8 +56,7 @@ def _tanh_streams(z: Streams) -> Streams:
         h_t = g * z[1]
         out.append(h_t)
         if len(z) > 2:
-            h_tt = -2.0 * h * h_t * z[1]
-            out.append(h_tt if z[2] is None else torch.addcmul(h_tt, g, z[2]))
+            out.append(torch.addcmul(-2.0 * h * h_t * z[1], g, z[2]))
     return out
 
 
@@ -70,10 +69,10 @@ def _forward(layers: list[tuple[torch.Tensor, torch.Tensor]], tn: torch.Tensor, 
     if order >= 1:  # d(tn, pn)/dt, one row per point so that each point's z_t has a gradient of its own
         streams.append(torch.tensor([slope, 0.0], dtype=x.dtype, device=x.device).expand_as(x))
     if order >= 2:
-        streams.append(None)
+        streams.append(torch.zeros_like(x))
     out = []
     for i, (w, b) in enumerate(layers):
-        z: Streams = [torch.addmm(b, streams[0], w)] + [None if s is None else s @ w for s in streams[1:]]
+        z: Streams = [torch.addmm(b, streams[0], w)] + [s @ w for s in streams[1:]]
         out.append((streams, z))
         if i < len(layers) - 1:
             streams = _tanh_streams(z)
@@ -87,7 +86,7 @@ def _taylor(raw: Streams, t: torch.Tensor) -> Callable[[torch.Tensor], torch.Ten
         u = (s - t)[..., None]
         acc = raw[-1]
         for k in range(len(raw) - 2, -1, -1):
-            acc = raw[k] if acc is None else raw[k] + u * acc / float(k + 1)
+            acc = raw[k] + u * acc / float(k + 1)
         return acc
     return at
 
@@ -136,7 +135,7 @@ def _block_jacobian(jac: torch.Tensor, block: Block) -> None:
     """Write the Jacobian of `block`'s residuals into the zeros `jac` (points, columns, n_params)."""
     r, passes, log_md = block
     points, columns = r.shape
-    wanted = [z for _, zs in passes for z in zs if z is not None] + ([] if log_md is None else [log_md])
+    wanted = [z for _, zs in passes for z in zs] + ([] if log_md is None else [log_md])
     for c in range(columns):
         pick = torch.zeros_like(r)  # the gradient of column c summed over the points
         pick[:, c] = 1.0
@@ -145,9 +144,7 @@ def _block_jacobian(jac: torch.Tensor, block: Block) -> None:
         for inputs, zs in passes:
             n_in, n_out = inputs[0].shape[-1], zs[0].shape[-1]
             w_block = jac[:, c, offset:offset + n_in * n_out].view(points, n_in, n_out)
-            for k, (s, z) in enumerate(zip(inputs, zs)):
-                if z is None:
-                    continue
+            for k, s in enumerate(inputs):
                 g = next(grads)
                 if g is None:
                     continue
