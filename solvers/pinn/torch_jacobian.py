@@ -14,12 +14,12 @@ are the propagated ones), with their t-derivatives by reverse-mode autograd (`OP
 Trained m and d (identification) enter as exp of a per-point copy of (log m, log d).
 
 The same vector and matrix as `network.residual_vector` and `network.jacobian_blocks` (JAX's
-path, jitted there); the tests compare them to rounding error. Why by hand: in torch's eager mode
-the per-op cost decides, and torch.func's vmap of jacrev of nested jvps runs ~1000 ops a call
-(each through four functorch layers) and builds each point's weight gradient from several
-partial outer products, where this runs ~150 ops and writes each outer product once into the
-Jacobian; the residuals skip the reverse passes of `OPS_AUTOGRAD`'s t-derivatives through the
-hidden layers.
+path, jitted there); the tests compare them to rounding error. Why by hand: in eager torch, the
+same computation by torch.func's vmap of jacrev of nested jvps sends each of its ~450 ops through
+four functorch layers, several with forward-mode rules in Python (torch._refs), and forms each
+point's weight gradient from several batched outer products (bmm) that it then adds; here each op
+is plain autograd, and each point's weight gradient is written once into the Jacobian. The
+residuals skip the reverse passes of `OPS_AUTOGRAD`'s t-derivatives through the hidden layers.
 """
 
 from __future__ import annotations
