@@ -19,6 +19,7 @@ from solvers.pinn.config import PinnConfig
 from solvers.pinn.evaluator import MarchingEvaluator
 from solvers.pinn.model_file import CorruptModelError, load_model
 from solvers.pinn.problems import (
+    Problem,
     forward_problem,
     identification_p_range,
     identification_problem,
@@ -249,6 +250,60 @@ def test_backends_agree_on_loss_jacobian_and_outputs(variant, identification, ca
         assert d_q.shape == o_q.shape == (3, 5, n)
         np.testing.assert_allclose(d_q, to_np(delta), rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(o_q, to_np(omega), rtol=1e-11, atol=1e-13)
+
+
+@pytest.mark.parametrize("variant, identification, case, starts", [
+    ("hard-ic", False, CASE, False), ("paper", False, CASE, False), ("two-outputs", True, CASE, False),
+    ("hard-ic", True, CASE, False), ("hard-ic", False, TWO, True), ("two-outputs", False, TWO, True),
+    ("hard-ic", True, TWO, False)],
+    ids=["fit-hard-ic", "fit-paper", "identify-two-outputs", "identify-hard-ic", "two-machines-window",
+         "two-machines-window-two-outputs", "two-machines-identify"])
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_torch_taylor_mode_equals_the_shared_network(variant, identification, case, starts, dtype):
+    """torch-pinn's training functions (t-derivatives propagated by hand,
+    `solvers.pinn.torch_jacobian`) equal the shared network's `residual_vector` and per-point
+    `jacobian_blocks` by torch.func (JAX's formulation, compared with JAX in
+    test_backends_agree_on_loss_jacobian_and_outputs), and the loss and its gradient r^T r and
+    2 J^T r of those, to rounding error: one and two outputs,
+    no hard initial condition, identification (m and d trained, omega data), time-marching start
+    states, two machines; in float32 to float32 rounding of the float64 reference."""
+    _need("torch-pinn")
+    import torch
+
+    from solvers.pinn.torch_jacobian import taylor_jacobian, taylor_loss_and_grad, taylor_residuals
+    from solvers.pinn.torch_pinn import OPS, OPS_AUTOGRAD
+
+    config = PinnConfig(seed=1, **ARCH_VARIANTS[variant])
+    n, n_u, n_f = case.n, 9, 13
+    arch = Architecture.of(config, case, identification=identification)
+    rng = np.random.default_rng(0)
+    columns = 2 * n if identification else n
+    arrays = {"t_u": rng.uniform(0.0, case.t_final, n_u), "p_u": rng.uniform(case.p1_min, case.p1_max, n_u),
+              "targets": rng.normal(size=(n_u, columns)), "t_f": rng.uniform(0.0, case.t_final, n_f),
+              "p_f": rng.uniform(case.p1_min, case.p1_max, n_f)}
+    if starts:
+        arrays |= {"start_u": rng.normal(size=(n_u, 2, n)), "start_f": rng.normal(size=(n_f, 2, n))}
+    problem = Problem(loss_scale=1.0, **arrays)
+    physics = network.Physics.of(case)
+    theta = init_theta(arch, config.seed, 0.3, 0.2) + 0.1 * rng.normal(size=arch.n_params)  # nonzero biases
+    as64 = {key: torch.as_tensor(value) for key, value in arrays.items()}
+    r_ref = network.residual_vector(arch, torch.as_tensor(theta), as64, OPS_AUTOGRAD, physics, problem).detach()
+    j_ref = network.jacobian_blocks(arch, torch.as_tensor(theta), as64, OPS, physics, problem)
+    tdtype = getattr(torch, dtype)
+    data = {key: value.to(tdtype) for key, value in as64.items()}
+    r = taylor_residuals(arch, torch.as_tensor(theta, dtype=tdtype), data, OPS_AUTOGRAD, physics, problem)
+    j = taylor_jacobian(arch, torch.as_tensor(theta, dtype=tdtype), data, OPS_AUTOGRAD, physics, problem)
+    loss, grad = taylor_loss_and_grad(arch, torch.as_tensor(theta, dtype=tdtype), data, OPS_AUTOGRAD, physics,
+                                      problem)
+    assert r.dtype == j.dtype == loss.dtype == grad.dtype == tdtype
+    assert r.shape == r_ref.shape == (problem.targets.size + n_f * arch.sizes[-1],)
+    assert j.shape == j_ref.shape == (r_ref.shape[0], arch.n_params)
+    tol = 1e-12 if dtype == "float64" else 1e-5
+    np.testing.assert_allclose(r.double().numpy(), r_ref.numpy(), rtol=0, atol=tol * r_ref.abs().max().item())
+    np.testing.assert_allclose(j.double().numpy(), j_ref.numpy(), rtol=0, atol=tol * j_ref.abs().max().item())
+    assert loss.item() == pytest.approx((r_ref @ r_ref).item(), rel=10 * tol)
+    g_ref = (2.0 * j_ref.T @ r_ref).numpy()
+    np.testing.assert_allclose(grad.double().numpy(), g_ref, rtol=0, atol=10 * tol * np.abs(g_ref).max())
 
 
 def test_torch_query_on_the_full_grid_matches_autodiff():

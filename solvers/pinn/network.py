@@ -30,14 +30,19 @@ from systems.model import Coupling, coupling, residual
 __all__ = [
     "Ops",
     "Physics",
+    "data_predictions",
     "data_terms",
     "delta_omega",
     "jacobian_blocks",
     "network_outputs",
+    "normalised_inputs",
+    "observed",
+    "output_heads",
     "physics_parameters",
     "physics_terms",
     "powers",
     "residual_vector",
+    "start_columns",
     "swing_residuals",
 ]
 
@@ -107,14 +112,26 @@ def network_outputs(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, st
     (A t^2 factor instead of phi^2 grows to 400 over 20 s and scales the network's output badly;
     phi saturates at 1 after a few s.)"""
     layers = arch.layers(_params(arch, theta))
-    tn = (t - arch.t_lo) * (2.0 / (arch.t_hi - arch.t_lo)) - 1.0
-    pn = (p - arch.p_lo) * (2.0 / (arch.p_hi - arch.p_lo)) - 1.0
+    tn, pn = normalised_inputs(arch, t, p)
     w0, b0 = layers[0]
     h = ops.tanh(tn[..., None] * w0[0] + pn[..., None] * w0[1] + b0)  # first layer without a stack
     for w, b in layers[1:-1]:
         h = ops.tanh(h @ w + b)
     w, b = layers[-1]
-    raw = h @ w + b
+    return output_heads(arch, t, h @ w + b, ops, start)
+
+
+def normalised_inputs(arch: Architecture, t: Any, p: Any) -> tuple[Any, Any]:
+    """The network's inputs t (s) and P1 (p.u.) mapped to [-1, 1] over the architecture's ranges,
+    each of shape S; dtn/dt is the constant 2 / (t_hi - t_lo) (1/s)."""
+    return ((t - arch.t_lo) * (2.0 / (arch.t_hi - arch.t_lo)) - 1.0,
+            (p - arch.p_lo) * (2.0 / (arch.p_hi - arch.p_lo)) - 1.0)
+
+
+def output_heads(arch: Architecture, t: Any, raw: Any, ops: Ops, start: Start = None) -> tuple[Any, ...]:
+    """The physical outputs (`network_outputs`) from the output layer's values `raw`, S + (outputs n,),
+    at times t (s), shape S: the hard initial condition's heads, or the columns of `raw` as they are
+    without `hard_ic`."""
     n = arch.machines
     outs = (raw,) if arch.outputs == 1 else (raw[..., :n], raw[..., n:])
     if not arch.hard_ic:
@@ -154,9 +171,15 @@ def delta_omega(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, start:
                 ) -> tuple[Any, Any]:
     """delta (rad) and omega (rad/s), each S + (n,): omega = d delta / dt by forward-mode autodiff of
     the network, or the network's second outputs for two-output networks."""
-    if arch.outputs == 2:
-        return network_outputs(arch, theta, t, p, ops, start)
-    delta, delta_t = _d_dt(lambda s: network_outputs(arch, theta, s, p, ops, start)[0], t, ops)
+    return observed(lambda s: network_outputs(arch, theta, s, p, ops, start), arch.outputs, t, ops)
+
+
+def observed(outputs: Callable[[Any], tuple[Any, ...]], n_outputs: int, t: Any, ops: Ops) -> tuple[Any, Any]:
+    """(delta, omega) of any differentiable `outputs(t) -> (delta,)` or `(delta, omega)` (each
+    S + (n,); n_outputs 1 or 2 per machine): omega = d delta / dt for one output."""
+    if n_outputs == 2:
+        return outputs(t)
+    delta, delta_t = _d_dt(lambda s: outputs(s)[0], t, ops)
     return delta, delta_t
 
 
@@ -183,9 +206,15 @@ def data_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, columns
                start: Start = None) -> Any:
     """Predictions for the data targets, shape S + (columns,): delta_1..n, and omega_1..n when
     columns = 2n."""
+    return data_predictions(lambda s: network_outputs(arch, theta, s, p, ops, start), arch, t, ops, columns)
+
+
+def data_predictions(outputs: Callable[[Any], tuple[Any, ...]], arch: Architecture, t: Any, ops: Ops,
+                     columns: int) -> Any:
+    """`data_terms` of any differentiable `outputs(t)` of a network `arch` (see `observed`)."""
     if columns == arch.machines:
-        return network_outputs(arch, theta, t, p, ops, start)[0]
-    return ops.concat(delta_omega(arch, theta, t, p, ops, start), -1)
+        return outputs(t)[0]
+    return ops.concat(observed(outputs, arch.outputs, t, ops), -1)
 
 
 def swing_residuals(outputs: Callable[[Any], tuple[Any, ...]], n_outputs: int, t: Any, p: Any, ops: Ops,
@@ -215,7 +244,7 @@ def physics_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, phys
                            physics, m, d)
 
 
-def _start(data: dict, key: str) -> Start:
+def start_columns(data: dict, key: str) -> Start:
     """The (delta_s, omega_s) columns of a (points, 2, n) start array in `data`, or None."""
     s = data.get(key)
     return None if s is None else (s[..., 0, :], s[..., 1, :])
@@ -231,10 +260,10 @@ def residual_vector(arch: Architecture, theta: Any, data: dict, ops: Ops, physic
     columns = problem.targets.shape[1]
     blocks = []
     if problem.t_u.size:
-        pred = data_terms(arch, theta, data["t_u"], data["p_u"], ops, columns, _start(data, "start_u"))
+        pred = data_terms(arch, theta, data["t_u"], data["p_u"], ops, columns, start_columns(data, "start_u"))
         blocks.append(w_u * (pred - data["targets"]).reshape(-1))
     if problem.t_f.size:
-        f = physics_terms(arch, theta, data["t_f"], data["p_f"], ops, physics, _start(data, "start_f"))
+        f = physics_terms(arch, theta, data["t_f"], data["p_f"], ops, physics, start_columns(data, "start_f"))
         blocks.append(w_f * f.reshape(-1))
     return ops.concat(blocks, 0)
 

@@ -1,9 +1,11 @@
-"""The PINN adapter on PyTorch (training on the CPU, or a CUDA GPU with `device="cuda"`): torch.func / torch.autograd for training, a hand-rolled
-forward-mode pass for queries.
+"""The PINN adapter on PyTorch (training on the CPU, or a CUDA GPU with `device="cuda"`): torch.autograd
+and hand-rolled Taylor-mode passes for training, a hand-rolled forward-mode pass for queries.
 
-Training evaluates the shared `solvers.pinn.network` with torch ops: the Jacobian of
-Levenberg-Marquardt with torch.func's jvp / vmap / jacrev (the same functional API as JAX), the
-residuals and the loss gradient of L-BFGS with reverse-mode torch.autograd (see OPS_AUTOGRAD). Queries use
+Training evaluates the shared `solvers.pinn.network`'s heads and residuals with torch ops, the
+network's t-derivatives propagated by hand and one reverse pass for every point's gradient
+(Levenberg-Marquardt's Jacobian) or for the loss gradient (L-BFGS): `solvers.pinn.torch_jacobian`.
+`OPS` (torch.func's jvp / vmap / jacrev, the same functional API as JAX) evaluates the shared
+network as JAX does, for the tests. Queries use
 `_FastForward`: the same network with its tangent in t propagated layer by layer. torch's eager
 per-op overhead (~2-3 us) dominates small queries, and torch.func.jvp / forward_ad dual tensors
 cost ~10x more per op; the hand-rolled pass folds the input normalisation into the first layer
@@ -23,8 +25,9 @@ from torch import func as tfunc
 from solvers.pinn.architecture import Architecture
 from solvers.pinn.common import PinnOptions, PinnSolver, Trainer
 from solvers.pinn.evaluator import Evaluator
-from solvers.pinn.network import Ops, Physics, jacobian_blocks, residual_vector
+from solvers.pinn.network import Ops, Physics
 from solvers.pinn.problems import Problem
+from solvers.pinn.torch_jacobian import taylor_jacobian, taylor_loss_and_grad, taylor_residuals
 
 __all__ = ["OPS", "OPS_AUTOGRAD", "TorchOptions", "TorchPinn"]
 
@@ -66,12 +69,9 @@ def _autograd_d2_dt2(f, t):
     return y, y_t, _grad_t(y_t, t)
 
 
-# The residuals and the loss gradient take their t-derivatives by reverse-mode torch.autograd
-# with create_graph: 21 ms per loss and gradient for the paper's 5 x 10 net on 8040 points in
-# float32, against 84 ms with torch.func's nested jvp under grad; the default's residuals 1.9 ms
-# against 10.5 ms (1 thread). The Jacobian (vmap/jacrev) needs torch.func's jvp:
-# torch.autograd.grad does not run inside torch.func transforms (and per-sample gradients by
-# autograd through expanded weights measured no faster: 31 ms against 34 ms).
+# t-derivatives by reverse-mode torch.autograd with create_graph: 21 ms per loss and gradient for
+# the paper's 5 x 10 net on 8040 points in float32, against 84 ms with torch.func's nested jvp
+# under grad. `solvers.pinn.torch_jacobian` takes the output heads' t-derivatives with it.
 OPS_AUTOGRAD = dataclasses.replace(OPS, d_dt=_autograd_d_dt, d2_dt2=_autograd_d2_dt2)
 _DTYPES = {"float32": torch.float32, "float64": torch.float64}
 
@@ -233,19 +233,14 @@ class TorchPinn(PinnSolver):
             return x.detach().to(torch.float64).cpu().numpy()
 
         def residuals(theta: np.ndarray) -> np.ndarray:
-            with torch.enable_grad():  # reverse-mode t-derivatives: 1.9 ms against 10.5 ms (2 x 16)
-                return numpy(residual_vector(arch, tensor(theta), data, OPS_AUTOGRAD, physics, problem))
+            return numpy(taylor_residuals(arch, tensor(theta), data, OPS_AUTOGRAD, physics, problem))
 
         def jacobian(theta: np.ndarray) -> np.ndarray:
-            with torch.no_grad():
-                return numpy(jacobian_blocks(arch, tensor(theta), data, OPS, physics, problem))
+            return numpy(taylor_jacobian(arch, tensor(theta), data, OPS_AUTOGRAD, physics, problem))
 
         def loss_and_grad(theta: np.ndarray) -> tuple[float, np.ndarray]:
-            variable = tensor(theta).requires_grad_(True)
-            r = residual_vector(arch, variable, data, OPS_AUTOGRAD, physics, problem)
-            value = r @ r
-            (grad,) = torch.autograd.grad(value, variable)
-            return float(value.detach()), numpy(grad)
+            value, grad = taylor_loss_and_grad(arch, tensor(theta), data, OPS_AUTOGRAD, physics, problem)
+            return float(value), numpy(grad)
 
         return Trainer(residuals, jacobian, loss_and_grad)
 
