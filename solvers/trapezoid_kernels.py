@@ -259,8 +259,9 @@ def _make_run(parallel: bool):
         stats = np.zeros((n_g, 4))
         status = np.zeros(n_g, np.int64)
         for g in prange(n_g):
-            status[g] = _trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out,
-                                    0 if shared else g, stats[g])
+            col = 0 if shared else np.int64(g)  # prange's index may be unsigned: 0 or g would unify to float
+            status[g] = _trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out, col,
+                                    stats[g])
         for g in range(n_g):
             if status[g] != OK:
                 return out, stats, g, status[g]
