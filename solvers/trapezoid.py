@@ -143,10 +143,10 @@ class Trapezoid(AbstractSolver):
             picked = [layout.pick(states[0])] + ([layout.pick(states[1])] if obs.omega is not None else [])
             return np.concatenate([p.ravel() for p in picked])
 
-        centre = [np.sqrt(box[:, 0] * box[:, 1]) for box in boxes]
+        m_centre, d_centre = (np.sqrt(box[:, 0] * box[:, 1]) for box in boxes)
         halved = self._options.copy()
         halved[0] /= 2
-        change = observed(simulate(*centre, False)) - observed(simulate(*centre, False, halved))
+        change = observed(simulate(m_centre, d_centre, False)) - observed(simulate(m_centre, d_centre, False, halved))
         target = np.concatenate([obs.delta.ravel()] + ([obs.omega.ravel()] if obs.omega is not None else []))
         model_error = 4.0 / 3.0 * float(np.linalg.norm(change) / np.linalg.norm(target))
         return identify_least_squares(simulate, obs, layout, *boxes, analytic_jacobian=False,
