@@ -36,7 +36,7 @@ Every measurement is taken on this machine, in one run, warm, with pinned thread
 DOP853 reference (rtol = atol = 1e-12); preparation (build, JIT, training) is reported apart from
 query time. Every speed verdict compares a PINN with the fastest classical option at least as
 accurate, on three rungs: the literature's baseline (scipy RK45 looped), the best Python-driven and
-the best compiled (numba, diffrax) classical solver."""
+the best compiled (numba, diffrax, trapezoid) classical solver."""
 
 
 DOCS_HELP = ("write the documentation site's results pages into this folder: one page per case with its "

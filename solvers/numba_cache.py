@@ -23,7 +23,7 @@ def main() -> int:
         return 0
     import numpy as np
 
-    from solvers import numba_kernels
+    from solvers import numba_kernels, trapezoid_kernels
     from solvers.numba_points import points_kernel
     from systems.cases import SMIB_INFERENCE
 
@@ -39,6 +39,9 @@ def main() -> int:
         for parallel in (False, True):  # numba-rk's solve_points: two pairs of one P1
             points_kernel(method, parallel, 1)(np.array([0.0, 1.0]), np.array([0, 1]), np.array([0, 2]),
                                                np.array([0.1]), system, options)
+    for parallel in (False, True):  # trapezoid's kernel, one for solve and solve_points: two P1, two times
+        trapezoid_kernels.run_kernel(parallel)(np.array([0.0, 0.1]), np.array([0, 1, 0, 1]), np.array([0, 2, 4]),
+                                               np.full(2, 0.1), system, np.array([0.05, 1e-10, 20.0]), False)
     try:
         from solvers.pinn.architecture import Architecture
         from solvers.pinn.compiled import NumbaEvaluator

@@ -34,6 +34,8 @@ from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERE
 # of the JAX PINN with its compiled query path, and the multi-machine PINNs' budgets in iterations
 # per window (`Settings.case_pinn_options`) where they were seconds; and bench-quick's cuts (no
 # ablations, configs for large systems or sweep points such as `tight`, no network identification).
+# Recorded again when the trapezoid adapter joined the registry: its units added, every other entry
+# as it was.
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {
