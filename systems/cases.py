@@ -14,11 +14,9 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-
-from systems.sparse_network import SparseNetwork
 
 __all__ = [
     "CASES",
@@ -30,6 +28,7 @@ __all__ = [
     "SMIB_CASES",
     "SMIB_IDENTIFICATION",
     "SMIB_INFERENCE",
+    "CarriedNetwork",
     "Case",
     "Observations",
     "case_record",
@@ -172,6 +171,19 @@ def _boxes(name: str, value, n: int) -> tuple[tuple[float, float], ...]:
     return tuple((float(lo), float(hi)) for lo, hi in arr)
 
 
+@runtime_checkable
+class CarriedNetwork(Protocol):
+    """What a `Case` reads of the unreduced network it carries (`systems.sparse_network.SparseNetwork`,
+    not imported here: this module imports nothing of the project): the bus of each machine, at
+    (n,), and `reduces_to`, the hash of the (G, B) tuples it was reduced to."""
+
+    @property
+    def at(self) -> np.ndarray: ...
+
+    @property
+    def reduces_to(self) -> int: ...
+
+
 @dataclass(frozen=True)
 class Case:
     """An N-machine classical swing system and its scenario: pure data.
@@ -218,7 +230,7 @@ class Case:
     m_box: tuple[tuple[float, float], ...]
     d_box: tuple[tuple[float, float], ...]
     source: str = ""
-    network: SparseNetwork | None = dataclasses.field(default=None, compare=False, repr=False)
+    network: CarriedNetwork | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         n = len(_vector("m", self.m))
@@ -240,7 +252,7 @@ class Case:
         if not self.p1_min <= self.p1_max:
             raise ValueError(f"Case.p1_min must be <= p1_max, got {self.p1_min!r} > {self.p1_max!r}")
         if self.network is not None:
-            if not isinstance(self.network, SparseNetwork) or self.network.at.size != n:
+            if not isinstance(self.network, CarriedNetwork) or np.size(self.network.at) != n:
                 raise ValueError(f"Case.network must be a SparseNetwork of {n} machines or None")
             if self.network.reduces_to != hash((self.G, self.B)):
                 raise ValueError("Case.network is not the network of this case's G and B (pass network=None)")
