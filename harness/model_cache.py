@@ -21,6 +21,7 @@ from harness.store import atomic_write
 from harness.versions import library_versions
 from solvers import plugin_distribution
 from solvers.base import AbstractSolver, FitReport
+from systems.cases import case_record
 
 __all__ = [
     "CACHE_FORMAT",
@@ -72,7 +73,7 @@ def cache_key(solver: AbstractSolver) -> str:
     adapter's distribution's), the cache's format."""
     options = {k: v for k, v in solver.options.items() if k not in type(solver).QUERY_OPTIONS}
     payload = json.dumps({"solver": solver.name, "config": solver.config, "options": options,
-                          "case": solver.case.__dict__, "code": code_version(),
+                          "case": case_record(solver.case), "code": code_version(),
                           "libraries": library_versions(TRAINING_LIBRARIES + _plugin(solver.name)),
                           "cache_format": CACHE_FORMAT},
                          sort_keys=True, default=str)

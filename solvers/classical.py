@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import NamedTuple, Protocol, TypeVar
+from typing import Literal, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -17,9 +17,14 @@ from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "ObservationLayout", "PointGroups", "PointsByP1",
-           "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares", "points_by_p1",
-           "run_batch", "search_boxes", "which_p1"]
+__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "NetworkForm", "ObservationLayout", "PointGroups", "PointsByP1",
+           "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares", "keeps_network_sparse",
+           "points_by_p1", "run_batch", "search_boxes", "which_p1"]
+
+# The form of the network an adapter integrates: "reduced" (Kron-reduced to the machines, the dense
+# coupling of `systems.model`), "sparse" (kept as the bus admittance matrix, `systems.sparse_network`)
+# or "auto" (by the case's size: `keeps_network_sparse`).
+NetworkForm = Literal["auto", "reduced", "sparse"]
 
 
 class ToleranceOptions(OptionSchema):
@@ -43,6 +48,18 @@ def check_step(owner: str, dt: float | None, case: Case) -> None:
     if dt is not None and dt > case.t_final:
         raise ValueError(f"{owner}: option dt must be <= t_final = {case.t_final} s, the horizon of case "
                          f"{case.name}, got {dt!r}")
+
+
+def keeps_network_sparse(owner: str, form: str, case: Case, sparse_from: int) -> bool:
+    """Whether `owner` integrates `case` with its network kept sparse: the option `form`
+    (`NetworkForm`); "auto" is sparse from `sparse_from` machines when the case carries its network
+    (`Case.network`), else reduced. "sparse" on a case without one is a ValueError naming the case."""
+    if form == "sparse" and case.network is None:
+        raise ValueError(f"{owner}: option network='sparse' needs a case that carries its network; "
+                         f"case {case.name} has none (it is given reduced only)")
+    if form == "auto":
+        return case.network is not None and case.n >= sparse_from
+    return form == "sparse"
 
 
 def search_boxes(case: Case, options: dict) -> tuple[np.ndarray, np.ndarray]:

@@ -35,10 +35,10 @@ def main() -> int:
     for method in numba_kernels.METHODS.values():
         for sens, parallel in ((False, False), (True, False), (False, True)):
             kernel = numba_kernels.kernel(method, sens, parallel, 1)
-            kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, options)
+            kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, numba_kernels.NO_NETWORK, options)
         for parallel in (False, True):  # numba-rk's solve_points: two pairs of one P1
             points_kernel(method, parallel, 1)(np.array([0.0, 1.0]), np.array([0, 1]), np.array([0, 2]),
-                                               np.array([0.1]), system, options)
+                                               np.array([0.1]), system, numba_kernels.NO_NETWORK, options)
     for parallel in (False, True):  # trapezoid's kernel, one for solve and solve_points: two P1, two times
         trapezoid_kernels.run_kernel(parallel)(np.array([0.0, 0.1]), np.array([0, 1, 0, 1]), np.array([0, 2, 4]),
                                                np.full(2, 0.1), system, np.array([0.05, 1e-10, 20.0]), False)

@@ -7,7 +7,9 @@ Packed arguments (each array argument costs ~0.1 us of dispatch, so they are few
   get their p_m from `system` (as `Case.powers`);
 - `system` (n, 7 + 2n), `system_array(case)`: per machine k the columns `M`, `D` (p.u.), `DELTA0`
   (rad), `OMEGA0` (rad/s), `P_M`, `C_INF`, `S_INF` (p.u.), then row k of C and row k of S
-  (p.u., from `COUPLING`; `systems.model.coupling`);
+  (p.u., from `COUPLING`; `systems.model.coupling`); (n, 7) without C and S for the sparse form;
+- `net`: the network kept sparse, `systems.sparse_network.LUFactors` of the case (P_e from the bus
+  voltages, `solvers.numba_sparse`), or `NO_NETWORK` for the reduced form (C and S in `system`);
 - `options` (4,): rtol, atol, dt (s, rk4 only), max_steps.
 The state of one trajectory is y = [delta_1..n, omega_1..n] (2n,); with sensitivities it is
 followed by the columns of S = dy/dp (2n, 2n), p = (m_1..n, d_1..n), column j at
@@ -17,7 +19,9 @@ sensitivities takes exactly the steps of a run without.
 P_e takes n sin and n cos per evaluation (the expansion of `systems.model`: two mat-vecs, no
 trigonometric call per pair of machines); a system whose machines see only their own susceptance
 to the infinite bus (C = S = 0, c_inf = 0: the SMIB) takes one sin per machine instead, and the
-same bits (the expansion's other terms are exact zeros).
+same bits (the expansion's other terms are exact zeros). In the sparse form the network's part of
+P_e is two sparse triangular solves (`solvers.numba_sparse`) instead of the two dense mat-vecs; the
+sensitivities (identification) take the reduced form only.
 """
 
 from __future__ import annotations
@@ -29,21 +33,30 @@ import numpy as np
 from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _c853
 
+from solvers.numba_sparse import sparse_power
 from systems.cases import Case
 from systems.model import coupling
+from systems.sparse_network import LUFactors
 
-__all__ = ["DOP853", "DOPRI5", "METHODS", "RK4", "kernel", "system_array"]
+__all__ = ["DOP853", "DOPRI5", "METHODS", "NO_NETWORK", "RK4", "kernel", "system_array"]
 
 # Columns of the packed system (see the module docstring); COUPLING + j is C[k, j],
 # COUPLING + n + j is S[k, j].
 M, D, DELTA0, OMEGA0, P_M, C_INF, S_INF, COUPLING = range(8)
 
 
-def system_array(case: Case) -> np.ndarray:
-    """The packed system of `case` (n, 7 + 2n) float64, the layout of the module docstring."""
+# The modes of the right-hand side: P_e,k = s_inf_k sin(delta_k) only; the reduced (dense)
+# coupling; the network kept sparse (`net`).
+UNCOUPLED, DENSE, SPARSE = 0, 1, 2
+NO_NETWORK = LUFactors.empty()
+
+
+def system_array(case: Case, sparse: bool = False) -> np.ndarray:
+    """The packed system of `case` (n, 7 + 2n) float64, the layout of the module docstring; (n, 7)
+    with `sparse` (the coupling is then `net`'s)."""
     k = coupling(case)
-    columns = [case.m, case.d, case.delta0, case.omega0, case.p_m, k.c_inf, k.s_inf]
-    return np.column_stack([np.array(columns, np.float64).T, k.C, k.S])
+    columns = np.array([case.m, case.d, case.delta0, case.omega0, case.p_m, k.c_inf, k.s_inf], np.float64).T
+    return np.ascontiguousarray(columns) if sparse else np.column_stack([columns, k.C, k.S])
 
 RK4, DOPRI5, DOP853 = 0, 1, 2
 METHODS = {"rk4": RK4, "dopri5": DOPRI5, "dop853": DOP853}
@@ -94,33 +107,43 @@ def _start(y, ts, order, system, n, out, col):
 
 
 @njit(cache=True, error_model="numpy")
-def _is_coupled(system, n):
-    """Whether P_e needs more than s_inf_k sin(delta_k): some C, S or c_inf entry is non-zero."""
+def _mode(system, net, n):
+    """SPARSE when `net` holds factors; else DENSE when P_e needs more than s_inf_k sin(delta_k)
+    (some C, S or c_inf entry is non-zero), else UNCOUPLED."""
+    if net.l_inv.size > 0:
+        return SPARSE
     for k in range(n):
         if system[k, C_INF] != 0.0:
-            return True
+            return DENSE
         for j in range(2 * n):
             if system[k, COUPLING + j] != 0.0:
-                return True
-    return False
+                return DENSE
+    return UNCOUPLED
 
 
 @njit(cache=True, error_model="numpy")
-def _rhs(y, out, P, system, n, sens, coupled, scratch):
-    """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `coupled` from
-    `_is_coupled` (False: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,) work
-    space: cos of each angle, sin of each angle, one row of the Jacobian of P_e. (Indexes into
-    scratch, not slices of it: a view costs reference counting on every call, measured 3x on the
-    SMIB grid.)"""
+def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
+    """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `mode` from `_mode`
+    (UNCOUPLED: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,) work space: cos
+    of each angle, sin of each angle, one row of the Jacobian of P_e (DENSE) or the network's P_e
+    (SPARSE); work (nb,) complex128, the sparse solves' (empty otherwise). (Indexes into scratch,
+    not slices of it: a view costs reference counting on every call, measured 3x on the SMIB
+    grid.) `sens` with SPARSE is not supported (`kernel` refuses it)."""
     two_n = 2 * n
-    if coupled:
+    coupled = mode == DENSE
+    if mode != UNCOUPLED:
         for k in range(n):
             scratch[k] = math.cos(y[k])
             scratch[n + k] = math.sin(y[k])
+    if mode == SPARSE:
+        sparse_power(scratch, net, n, work)
     for k in range(n):
         m, d, omega = system[k, M], system[k, D], y[n + k]
         ck = sk = 0.0
-        if coupled:
+        if mode == SPARSE:
+            ck, sk = scratch[k], scratch[n + k]
+            pe = scratch[two_n + k] + (system[k, C_INF] * ck + system[k, S_INF] * sk)
+        elif coupled:
             # P_e,k = c_k (C c - S s)_k + s_k (C s + S c)_k + c_inf_k c_k + s_inf_k s_k (systems.model)
             ck, sk = scratch[k], scratch[n + k]
             cc = cs = sc = ss = 0.0
@@ -177,7 +200,7 @@ def _rms(v, scale, n_ctrl):
 
 
 @njit(cache=True, error_model="numpy")
-def _initial_step(y0, f0, P, system, n, sens, coupled, scratch, t_end, order, rtol, atol, work):
+def _initial_step(y0, f0, P, system, net, n, sens, mode, scratch, cwork, t_end, order, rtol, atol, work):
     """scipy's `select_initial_step` (Hairer, Norsett & Wanner, II.4) on the controlled entries."""
     n_ctrl = 2 * n
     scale, y1, f1 = work[0], work[1], work[2]
@@ -188,7 +211,7 @@ def _initial_step(y0, f0, P, system, n, sens, coupled, scratch, t_end, order, rt
     h0 = min(h0, t_end)
     for i in range(y0.size):
         y1[i] = y0[i] + h0 * f0[i]
-    _rhs(y1, f1, P, system, n, sens, coupled, scratch)
+    _rhs(y1, f1, P, system, net, n, sens, mode, scratch, cwork)
     for i in range(n_ctrl):
         y1[i] = f1[i] - f0[i]
     d2 = _rms(y1, scale, n_ctrl) / h0
@@ -200,7 +223,7 @@ def _initial_step(y0, f0, P, system, n, sens, coupled, scratch, t_end, order, rt
 
 
 @njit(cache=True, error_model="numpy")
-def _stages(K, y, h, A, first, last, tmp, P, system, n, sens, coupled, scratch):
+def _stages(K, y, h, A, first, last, tmp, P, system, net, n, sens, mode, scratch, cwork):
     """K[s] = f(y + h sum_j A[s, j] K[j]) for s in [first, last)."""
     for s in range(first, last):
         for i in range(y.size):
@@ -208,7 +231,7 @@ def _stages(K, y, h, A, first, last, tmp, P, system, n, sens, coupled, scratch):
             for j in range(s):
                 acc += A[s, j] * K[j, i]
             tmp[i] = y[i] + h * acc
-        _rhs(tmp, K[s], P, system, n, sens, coupled, scratch)
+        _rhs(tmp, K[s], P, system, net, n, sens, mode, scratch, cwork)
 
 
 @functools.cache
@@ -222,12 +245,13 @@ def _make_adaptive(method: int, sens: bool, n: int):
     exponent = -1.0 / (err_order + 1)
     n_ctrl, n_y = 2 * n, 2 * n + (4 * n * n if sens else 0)
 
-    def adaptive(ts, order, P, system, coupled, rtol, atol, max_steps, out, col):
+    def adaptive(ts, order, P, system, net, mode, rtol, atol, max_steps, out, col):
         """From t = 0 to ts[order[-1]] (s), dense output at ts[order] into trajectory `col` of `out`
         (see `kernel`); `order` indexes ts in ascending time, all of it or a part (one trajectory's
         times of a points query); returns a status code."""
         n_t = order.size
         scratch = np.empty(3 * n)
+        cwork = np.empty(net.l_inv.size, np.complex128)
         K = np.empty((16, n_y))
         work = np.empty((8, n_y))
         y, y_new, tmp = work[3], work[4], work[5]
@@ -236,9 +260,9 @@ def _make_adaptive(method: int, sens: bool, n: int):
         i_out = _start(y, ts, order, system, n, out, col)
         if t_end <= 0.0:
             return OK
-        _rhs(y, K[0], P, system, n, sens, coupled, scratch)
-        h_abs = _initial_step(y, K[0], P, system, n, sens, coupled, scratch, t_end, err_order, rtol, atol,
-                              work)
+        _rhs(y, K[0], P, system, net, n, sens, mode, scratch, cwork)
+        h_abs = _initial_step(y, K[0], P, system, net, n, sens, mode, scratch, cwork, t_end, err_order, rtol,
+                              atol, work)
         t = 0.0
         steps = 0
         while t < t_end:
@@ -254,13 +278,13 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 t_new = min(t + h_abs, t_end)
                 h = t_new - t
                 h_abs = h
-                _stages(K, y, h, A, 1, n_stages, tmp, P, system, n, sens, coupled, scratch)
+                _stages(K, y, h, A, 1, n_stages, tmp, P, system, net, n, sens, mode, scratch, cwork)
                 for i in range(n_y):
                     acc = 0.0
                     for j in range(n_stages):
                         acc += B[j] * K[j, i]
                     y_new[i] = y[i] + h * acc
-                _rhs(y_new, K[n_stages], P, system, n, sens, coupled, scratch)
+                _rhs(y_new, K[n_stages], P, system, net, n, sens, mode, scratch, cwork)
                 e5n, e3n = 0.0, 0.0
                 for i in range(n_ctrl):
                     sc = atol + max(abs(y[i]), abs(y_new[i])) * rtol
@@ -290,7 +314,7 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 h_abs *= factor if factor > MIN_FACTOR else MIN_FACTOR  # noqa: FURB136
                 rejected = True
             if i_out < n_t and ts[order[i_out]] <= t_new:
-                _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens, coupled, scratch)
+                _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, net, n, sens, mode, scratch, cwork)
                 while i_out < n_t and ts[order[i_out]] <= t_new:
                     x = (ts[order[i_out]] - t) / h
                     o = order[i_out]
@@ -310,7 +334,7 @@ def _make_adaptive(method: int, sens: bool, n: int):
 
 
 @njit(cache=True, error_model="numpy")
-def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens, coupled, scratch):
+def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, net, n, sens, mode, scratch, cwork):
     """F: dopri5's Q^T = (K^T P)^T (4 rows), or DOP853's 7 rows (3 extra stages evaluated)."""
     n_y = y.size
     if method == DOPRI5:
@@ -321,7 +345,7 @@ def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, n, sens, coup
                     acc += DP_P[j, r] * K[j, i]
                 F[r, i] = acc
         return
-    _stages(K, y, h, D8_A, 13, 16, tmp, P, system, n, sens, coupled, scratch)
+    _stages(K, y, h, D8_A, 13, 16, tmp, P, system, net, n, sens, mode, scratch, cwork)
     for i in range(n_y):
         dy = y_new[i] - y[i]
         F[0, i] = dy
@@ -351,12 +375,13 @@ def _make_rk4(sens: bool, n: int):
     """One trajectory by classic RK4, compiled for one `sens` and n machines."""
     n_y = 2 * n + (4 * n * n if sens else 0)
 
-    def rk4(ts, order, P, system, coupled, dt, max_steps, out, col):
+    def rk4(ts, order, P, system, net, mode, dt, max_steps, out, col):
         """ceil(t_end / dt) equal steps from t = 0 to t_end = ts[order[-1]] (s), output at ts[order]
         by cubic Hermite interpolation of each step's end states and derivatives (4th order, as
         RK4 itself); `order` as the adaptive methods'; returns a status code."""
         n_t = order.size
         scratch = np.empty(3 * n)
+        cwork = np.empty(net.l_inv.size, np.complex128)
         K = np.empty((4, n_y))
         work = np.empty((4, n_y))
         y, y_old, f_new, tmp = work[0], work[1], work[2], work[3]
@@ -368,23 +393,23 @@ def _make_rk4(sens: bool, n: int):
         if n_steps > max_steps:
             return TOO_MANY_STEPS
         h = t_end / n_steps
-        _rhs(y, K[0], P, system, n, sens, coupled, scratch)
+        _rhs(y, K[0], P, system, net, n, sens, mode, scratch, cwork)
         for step in range(n_steps):
             t0 = step * h
             t1 = t_end if step == n_steps - 1 else (step + 1) * h
             for i in range(n_y):
                 y_old[i] = y[i]
                 tmp[i] = y[i] + 0.5 * h * K[0, i]
-            _rhs(tmp, K[1], P, system, n, sens, coupled, scratch)
+            _rhs(tmp, K[1], P, system, net, n, sens, mode, scratch, cwork)
             for i in range(n_y):
                 tmp[i] = y_old[i] + 0.5 * h * K[1, i]
-            _rhs(tmp, K[2], P, system, n, sens, coupled, scratch)
+            _rhs(tmp, K[2], P, system, net, n, sens, mode, scratch, cwork)
             for i in range(n_y):
                 tmp[i] = y_old[i] + h * K[2, i]
-            _rhs(tmp, K[3], P, system, n, sens, coupled, scratch)
+            _rhs(tmp, K[3], P, system, net, n, sens, mode, scratch, cwork)
             for i in range(n_y):
                 y[i] = y_old[i] + h / 6.0 * (K[0, i] + 2.0 * (K[1, i] + K[2, i]) + K[3, i])
-            _rhs(y, f_new, P, system, n, sens, coupled, scratch)
+            _rhs(y, f_new, P, system, net, n, sens, mode, scratch, cwork)
             while i_out < n_t and ts[order[i_out]] <= t1:
                 x = (ts[order[i_out]] - t0) / h
                 h00, h10 = (1 + 2 * x) * (1 - x) ** 2, h * x * (1 - x) ** 2
@@ -416,7 +441,7 @@ def _name_for_cache(dispatcher, name: str):
     return dispatcher
 
 
-for _name in ("_start", "_is_coupled", "_rhs", "_rms", "_initial_step", "_stages", "_dense_coefficients",
+for _name in ("_start", "_mode", "sparse_power", "_rhs", "_rms", "_initial_step", "_stages", "_dense_coefficients",
               "_dense_eval"):
     _name_for_cache(globals()[_name], _name)
 
@@ -433,23 +458,23 @@ def _jit_variant(py_func, variant: str, **flags):
 
 def _make_trajectory(method: int, sens: bool, n: int):
     """One trajectory for generator-1 power p1 (p.u.; the other generators at their p_m, as
-    `Case.powers`), compiled for one method, `sens` and n machines: `(t, order, p1, system,
-    coupled, options, out, index) -> status`, the states at t[order] written into out[:, index]
-    (the integrators' layout), `options` packed as `kernel`'s."""
+    `Case.powers`), compiled for one method, `sens` and n machines: `(t, order, p1, system, net,
+    mode, options, out, index) -> status`, the states at t[order] written into out[:, index]
+    (the integrators' layout), `options` packed as `kernel`'s, `mode` `_mode`'s."""
     if method == RK4:
         rk4 = _make_rk4(sens, n)
 
-        def trajectory(t, order, p1, system, coupled, options, out, index):
+        def trajectory(t, order, p1, system, net, mode, options, out, index):
             P = system[:, P_M].copy()
             P[0] = p1
-            return rk4(t, order, P, system, coupled, options[2], int(options[3]), out, index)
+            return rk4(t, order, P, system, net, mode, options[2], int(options[3]), out, index)
     else:
         adaptive = _make_adaptive(method, sens, n)
 
-        def trajectory(t, order, p1, system, coupled, options, out, index):
+        def trajectory(t, order, p1, system, net, mode, options, out, index):
             P = system[:, P_M].copy()
             P[0] = p1
-            return adaptive(t, order, P, system, coupled, options[0], options[1], int(options[3]), out, index)
+            return adaptive(t, order, P, system, net, mode, options[0], options[1], int(options[3]), out, index)
 
     return _jit_variant(trajectory, f"{method}_{int(sens)}_{n}")
 
@@ -457,7 +482,7 @@ def _make_trajectory(method: int, sens: bool, n: int):
 def _make_batch(method: int, sens: bool, parallel: bool, n: int):
     trajectory = _make_trajectory(method, sens, n)
 
-    def batch(t, P1, system, options):
+    def batch(t, P1, system, net, options):
         n_b, n_t = P1.size, t.size
         ordered = True
         for i in range(1, n_t):
@@ -465,11 +490,13 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
                 ordered = False
                 break
         order = np.arange(n_t) if ordered else np.argsort(t, kind="mergesort")
-        coupled = _is_coupled(system, n)
+        mode = _mode(system, net, n)
+        if sens and mode == SPARSE:
+            raise ValueError("the sensitivities take the reduced network only (net = NO_NETWORK)")
         out = np.empty((2 + (4 * n if sens else 0), n_b, n_t, n))
         status = np.zeros(n_b, np.int64)
         for b in prange(n_b):
-            status[b] = trajectory(t, order, P1[b], system, coupled, options, out, b)
+            status[b] = trajectory(t, order, P1[b], system, net, mode, options, out, b)
         for b in range(n_b):
             if status[b] != OK:
                 return out, b, status[b]
@@ -480,9 +507,9 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
 
 @functools.cache
 def kernel(method: int, sens: bool, parallel: bool, n: int = 1):
-    """The compiled batch integrator `(t, P1, system, options) -> (out, failed, status)` of an
-    n-machine `system` (`system_array`) at times t (s, 1-D, >= 0, any order, repeats allowed) for
-    each generator-1 power P1 (n_batch,) p.u.: out (2 (+ 4n with `sens`), n_batch, n_t, n), the
+    """The compiled batch integrator `(t, P1, system, net, options) -> (out, failed, status)` of an
+    n-machine `system` (`system_array`) and `net` (module docstring; `NO_NETWORK` with `sens`) at
+    times t (s, 1-D, >= 0, any order, repeats allowed) for each generator-1 power P1 (n_batch,) p.u.: out (2 (+ 4n with `sens`), n_batch, n_t, n), the
     state y (module docstring) in blocks of n, so that out[0] is delta (rad) and out[1] omega
     (rad/s), each (n_batch, n_t, n) as the adapter returns them (no reshaping per query), and
     out[2 + 2j], out[3 + 2j] are d delta / d p_j, d omega / d p_j, p = (m_1..n, d_1..n) p.u.;

@@ -14,7 +14,7 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import OK, _is_coupled, _jit_variant, _make_trajectory
+from solvers.numba_kernels import OK, _jit_variant, _make_trajectory, _mode
 
 __all__ = ["points_kernel"]
 
@@ -22,13 +22,13 @@ __all__ = ["points_kernel"]
 def _make_points(method: int, parallel: bool, n: int):
     trajectory = _make_trajectory(method, False, n)
 
-    def points(t, order, starts, P1, system, options):
+    def points(t, order, starts, P1, system, net, options):
         n_g = P1.size
-        coupled = _is_coupled(system, n)
+        mode = _mode(system, net, n)
         out = np.empty((2, 1, t.size, n))  # the integrators' (block, trajectory, time, machine)
         status = np.zeros(n_g, np.int64)
         for g in prange(n_g):
-            status[g] = trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out, 0)
+            status[g] = trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, net, mode, options, out, 0)
         for g in range(n_g):
             if status[g] != OK:
                 return out[:, 0], g, status[g]
@@ -39,8 +39,8 @@ def _make_points(method: int, parallel: bool, n: int):
 
 @functools.cache
 def points_kernel(method: int, parallel: bool, n: int = 1):
-    """The compiled points integrator `(t, order, starts, P1, system, options) -> (out, failed,
-    status)` of an n-machine `system` (`numba_kernels.system_array`): t (n_s,) s >= 0, the pairs'
+    """The compiled points integrator `(t, order, starts, P1, system, net, options) -> (out, failed,
+    status)` of an n-machine `system` and `net` (`numba_kernels`' module docstring): t (n_s,) s >= 0, the pairs'
     times in input order; order (n_s,) and starts (n_g + 1,) int64 and P1 (n_g,) p.u., the groups
     of `PointGroups` (each group's pairs by ascending time); options as `numba_kernels.kernel`'s.
     out (2, n_s, n): out[0] delta (rad), out[1] omega (rad/s), pair i at row i; `failed` the

@@ -10,20 +10,23 @@ import numba
 import numpy as np
 
 from solvers import numba_kernels as kernels
-from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
+    NetworkForm,
     ObservationLayout,
     PointGroups,
     ToleranceOptions,
     check_step,
     identify_least_squares,
+    keeps_network_sparse,
     search_boxes,
 )
 from solvers.numba_points import points_kernel
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
+from systems.sparse_network import LUFactors, lu_factors
 
 _FAILURES = {
     kernels.TOO_MANY_STEPS: "more than max_steps steps",
@@ -32,6 +35,10 @@ _FAILURES = {
 }
 COARSE_TOLERANCES = (1e-6, 1e-9)  # rtol, atol of the start grid of identify
 RK4_STEPS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)  # s, the work-precision sweep of rk4
+# network="auto": the network kept sparse from this many machines (when the case carries it). One
+# core, dop853, 4 P1 x 101 times: the forms within 30 % of each other at 54 and 69 machines (case118,
+# case300), the sparse one 2-3x faster at 260 and 8-10x at 1445 (docs/scaling.md).
+SPARSE_FROM_MACHINES = 100
 
 
 Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.METHODS`
@@ -43,6 +50,7 @@ class NumbaRKOptions(ToleranceOptions):
     max_steps: PositiveInt = 100_000
     parallel: StrictBool = False
     threads: PositiveInt = 2  # <= numba's NUMBA_NUM_THREADS (checked by the adapter)
+    network: NetworkForm = "auto"
 
 
 class NumbaRK(AbstractSolver):
@@ -53,12 +61,16 @@ class NumbaRK(AbstractSolver):
     fixed step, cubic Hermite output); rtol, atol (adaptive methods; ode45's 1e-3, 1e-6 by
     default); dt (s, rk4: ceil(t / dt) equal steps); max_steps (per trajectory); parallel (P1 over
     numba threads, prange, for more than one P1, and solve_points' distinct P1) with `threads`
-    of them; m_bounds, d_bounds
+    of them; network ("reduced", "sparse" or "auto", the default: sparse from
+    `SPARSE_FROM_MACHINES` machines on a case that carries its network); m_bounds, d_bounds
     (p.u.; default the case's per-machine boxes), the search box of `identify`, which integrates
     the forward sensitivities d(delta, omega)/d(m_1..n, d_1..n) along (the analytic Jacobian of
-    the least squares).
-    The right-hand side is the case's n-machine swing equation (`systems.model`); P1 is
-    generator 1's mechanical power, the other machines run at their p_m.
+    the least squares) on the reduced network whatever the option (its start grid is ranked in the
+    option's form).
+    The right-hand side is the case's n-machine swing equation (`systems.model`), its network
+    Kron-reduced (dense coupling, ~4 n^2 multiply-adds) or kept sparse (`systems.sparse_network`:
+    two sparse triangular solves); P1 is generator 1's mechanical power, the other machines run
+    at their p_m.
     """
 
     name: ClassVar[str] = "numba-rk"
@@ -83,6 +95,7 @@ class NumbaRK(AbstractSolver):
         """The rules that depend on the case and the machine (the rest is `NumbaRKOptions`)."""
         options = self.options
         check_step(self.name, options["dt"], self.case)
+        keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
         if options["threads"] > numba.config.NUMBA_NUM_THREADS:
             raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
                              f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")
@@ -91,42 +104,52 @@ class NumbaRK(AbstractSolver):
         """Packed system and options, and the compiled kernels (numba compiles, or loads from its
         cache, on the first call of each: here, on tiny inputs); the sensitivity kernel only when
         `sensitivities` (identification): its right-hand side costs ~n^3 (2n tangents of an n x n
-        coupling), minutes at 1445 machines even on the tiny warm-up."""
+        coupling), minutes at 1445 machines even on the tiny warm-up; it takes the reduced network
+        (`_reduced`) whatever the option."""
         options, n = self.options, self.case.n
         method = kernels.METHODS[options["method"]]
         if not hasattr(self, "_system"):
-            self._system = kernels.system_array(self.case)
+            sparse = keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
+            self._system = kernels.system_array(self.case, sparse)
+            self._net = lu_factors(self.case.network, self.case.E) if sparse else kernels.NO_NETWORK
             self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]],
                                      np.float64)
             self._serial = kernels.kernel(method, False, False, n)
             self._batch = kernels.kernel(method, False, options["parallel"], n)
             self._points = points_kernel(method, options["parallel"], n)
             for run in (self._serial, self._batch):
-                self._warm(run)
+                self._warm(run, self._system, self._net)
             self._solve_points(np.array([0.1, 0.0, 0.1]), np.array([self.case.p1_min, self.case.p1_min, 0.0]))
         if sensitivities and not hasattr(self, "_sensitivities"):
+            self._reduced = self._system if self._net is kernels.NO_NETWORK else kernels.system_array(self.case)
             self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
-            self._warm(self._sensitivities)
+            self._warm(self._sensitivities, self._reduced, kernels.NO_NETWORK)
 
-    def _warm(self, run) -> None:
-        run(np.array([0.0, 0.1]), np.full(2, self.case.p1_min), self._system, self._options)
+    def _warm(self, run, system: np.ndarray, net: LUFactors) -> None:
+        run(np.array([0.0, 0.1]), np.full(2, self.case.p1_min), system, net, self._options)
 
-    def _fit(self) -> None:
+    def _fit(self) -> FitReport:
+        """Compile (`_prepare`); the report says which form of a network the kernels integrate."""
         self._prepare()
+        net = self._net
+        if net is kernels.NO_NETWORK:
+            return FitReport(seconds=0.0, message="" if self.case.network is None else "network: reduced")
+        return FitReport(seconds=0.0, message=f"network: sparse ({net.l_inv.size} buses, nnz(L + U) {net.nnz})")
 
-    def _run(self, run, t: np.ndarray, P1: np.ndarray, system: np.ndarray, options: np.ndarray) -> np.ndarray:
+    def _run(self, run, t: np.ndarray, P1: np.ndarray, system: np.ndarray, net: LUFactors,
+             options: np.ndarray) -> np.ndarray:
         """States (n_blocks, len(P1), len(t), n) from the kernel `run` (`numba_kernels.kernel`:
         [0] delta, [1] omega, then the sensitivities), or SolveError naming P1."""
         if run is not self._serial:
             numba.set_num_threads(self.options["threads"])
-        states, failed, status = run(t, P1, system, options)
+        states, failed, status = run(t, P1, system, net, options)
         if failed >= 0:
             raise SolveError(f"{self.name}: integration failed at P1={P1[failed]:g}: {_FAILURES[status]}")
         return states
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         run = self._serial if P1.size == 1 else self._batch
-        states = self._run(run, t, P1, self._system, self._options)
+        states = self._run(run, t, P1, self._system, self._net, self._options)
         return states[0], states[1]
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +160,7 @@ class NumbaRK(AbstractSolver):
         if self.options["parallel"]:
             numba.set_num_threads(self.options["threads"])
         states, failed, status = self._points(t, groups.order, groups.starts, groups.P1, self._system,
-                                              self._options)
+                                              self._net, self._options)
         if failed >= 0:
             raise SolveError(f"{self.name}: integration failed at P1={groups.P1[failed]:g}: {_FAILURES[status]}")
         return states[0], states[1]
@@ -154,21 +177,21 @@ class NumbaRK(AbstractSolver):
         coarse[:2] = np.maximum(coarse[:2], COARSE_TOLERANCES)
         last: dict[str, Any] = {}
 
-        def with_params(m: np.ndarray, d: np.ndarray) -> np.ndarray:
-            system = self._system.copy()
+        def with_params(system: np.ndarray, m: np.ndarray, d: np.ndarray) -> np.ndarray:
+            system = system.copy()
             system[:, kernels.M], system[:, kernels.D] = m, d
             return system
 
         def rank_starts(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
-            states = self._run(self._batch, layout.t, layout.P1, with_params(m, d), coarse)
+            states = self._run(self._batch, layout.t, layout.P1, with_params(self._system, m, d), self._net, coarse)
             return states[0], states[1], None, None
 
         def simulate(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
             key = (m.tobytes(), d.tobytes())
             if last.get("md") != key:
                 last["md"] = key
-                last["states"] = self._run(self._sensitivities, layout.t, layout.P1, with_params(m, d),
-                                           self._options)
+                last["states"] = self._run(self._sensitivities, layout.t, layout.P1,
+                                           with_params(self._reduced, m, d), kernels.NO_NETWORK, self._options)
             states = last["states"]
             if not with_jacobian:
                 return states[0], states[1], None, None

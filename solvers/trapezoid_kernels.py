@@ -40,14 +40,16 @@ from numba import njit, prange
 from solvers.numba_kernels import (
     C_INF,
     COUPLING,
+    NO_NETWORK,
     NOT_FINITE,
     OK,
     P_M,
     S_INF,
+    UNCOUPLED,
     D,
     M,
-    _is_coupled,
     _jit_variant,
+    _mode,
     _name_for_cache,
     _start,
 )
@@ -65,7 +67,7 @@ STATS = ("steps", "iterations", "factorisations", "t_failed")
 def network(delta, pe, jac, with_jac, system, n, coupled, scratch):
     """pe (n,) = P_e(delta) (p.u.) of every machine for angles delta (n,) rad (`systems.model`'s
     expansion: n sin and n cos, two products with C and S); with `with_jac`, jac (n, n) =
-    dP_e/d delta (p.u./rad). `coupled` from `numba_kernels._is_coupled` (False: P_e,k =
+    dP_e/d delta (p.u./rad). `coupled`: `numba_kernels._mode` is not UNCOUPLED (False: P_e,k =
     s_inf_k sin(delta_k), diagonal jac). scratch (2n,): cos and sin of each angle."""
     if not coupled:
         for k in range(n):
@@ -254,7 +256,7 @@ _name_for_cache(_trajectory, "_trajectory")
 def _make_run(parallel: bool):
     def run(t, order, starts, P1, system, options, shared):
         n_g, n = P1.size, system.shape[0]
-        coupled = _is_coupled(system, n)
+        coupled = _mode(system, NO_NETWORK, n) != UNCOUPLED
         out = np.empty((2, 1 if shared else n_g, t.size, n))
         stats = np.zeros((n_g, 4))
         status = np.zeros(n_g, np.int64)

@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -27,8 +28,10 @@ __all__ = [
     "SMIB_CASES",
     "SMIB_IDENTIFICATION",
     "SMIB_INFERENCE",
+    "CarriedNetwork",
     "Case",
     "Observations",
+    "case_record",
     "check_array",
     "check_number",
     "per_machine",
@@ -168,6 +171,19 @@ def _boxes(name: str, value, n: int) -> tuple[tuple[float, float], ...]:
     return tuple((float(lo), float(hi)) for lo, hi in arr)
 
 
+@runtime_checkable
+class CarriedNetwork(Protocol):
+    """What a `Case` reads of the unreduced network it carries (`systems.sparse_network.SparseNetwork`,
+    not imported here: this module imports nothing of the project): the bus of each machine, at
+    (n,), and `reduces_to`, the hash of the (G, B) tuples it was reduced to."""
+
+    @property
+    def at(self) -> np.ndarray: ...
+
+    @property
+    def reduces_to(self) -> int: ...
+
+
 @dataclass(frozen=True)
 class Case:
     """An N-machine classical swing system and its scenario: pure data.
@@ -189,6 +205,10 @@ class Case:
     omega0 (n,) rad/s (speed deviation, electrical), t_final s. m_box, d_box (n, 2): each
     machine's (low, high) p.u., the box identification searches (the prior of the problem).
     Sequences are stored as tuples of floats so that a case is hashable and compares by value.
+    network: optionally the same network unreduced (`systems.sparse_network.SparseNetwork`, built
+    with G and B by `systems.network.classical_model`), for the solvers that keep it sparse; derived
+    data, so it is left out of the case's equality, hash, repr and record (`case_record`), and a
+    network reduced to other G, B is refused (replace or drop it with them: network=None).
 
     The paper's SMIB is n = 1, E = (1,), G = B = ((0,),), g_inf = (0,), b_inf = (b,).
     """
@@ -210,6 +230,7 @@ class Case:
     m_box: tuple[tuple[float, float], ...]
     d_box: tuple[tuple[float, float], ...]
     source: str = ""
+    network: CarriedNetwork | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         n = len(_vector("m", self.m))
@@ -230,6 +251,11 @@ class Case:
             raise ValueError(f"Case.t_final must be > 0, got {self.t_final!r}")
         if not self.p1_min <= self.p1_max:
             raise ValueError(f"Case.p1_min must be <= p1_max, got {self.p1_min!r} > {self.p1_max!r}")
+        if self.network is not None:
+            if not isinstance(self.network, CarriedNetwork) or np.size(self.network.at) != n:
+                raise ValueError(f"Case.network must be a SparseNetwork of {n} machines or None")
+            if self.network.reduces_to != hash((self.G, self.B)):
+                raise ValueError("Case.network is not the network of this case's G and B (pass network=None)")
 
     @property
     def n(self) -> int:
@@ -263,6 +289,12 @@ class Case:
         P = np.tile(np.asarray(self.p_m, np.float64), (np.size(P1), 1))
         P[:, 0] = P1
         return P
+
+
+def case_record(case: Case) -> dict[str, Any]:
+    """The fields that define `case` (every field but the derived `network`), by name, in field
+    order: what a case compares and hashes by, and what is saved or keyed of it."""
+    return {f.name: getattr(case, f.name) for f in dataclasses.fields(case) if f.compare}
 
 
 def smib_case(name: str, m: float, d: float, b: float, delta0: float, omega0: float, t_final: float,

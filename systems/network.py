@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.sparse import block_diag, coo_matrix, diags
 
 from systems.cases import Case, check_array, per_machine
+from systems.sparse_network import SparseNetwork, augmented_network
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
@@ -67,7 +67,8 @@ class ClassicalModel:
     buses (n,) pandapower bus indices and elements (n,) ("gen" | "ext_grid", index) of the machines;
     m (n,) p.u. s^2/rad; d (n,) p.u. s/rad; E (n,) p.u.; delta0 (n,) rad (absolute, the power
     flow's reference); p_m (n,) p.u. = P_e(delta0); p_flow (n,) p.u., the power flow's machine P;
-    G, B (n, n) symmetric p.u.; all powers and admittances on base_mva (MVA); f_hz the frequency.
+    G, B (n, n) symmetric p.u.; all powers and admittances on base_mva (MVA); f_hz the frequency;
+    network: the same network unreduced (`systems.sparse_network`), reduced to G, B.
     """
 
     buses: tuple[int, ...]
@@ -82,6 +83,7 @@ class ClassicalModel:
     B: np.ndarray
     base_mva: float
     f_hz: float
+    network: SparseNetwork
 
 
 def electrical_power(delta: np.ndarray, E: np.ndarray, G: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -186,7 +188,8 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
     Raises ValueError if the power flow does not balance to `balance_tol` p.u. with these elements
     (an unsolved net, or an element this model lacks: ward, storage, ...), or if p_m = P_e(delta0)
     differs from the power flow's machine P by more than `tol` p.u.
-    The network is reduced with sparse matrices (`kron_reduce_sparse`: 9241 buses in ~2 s).
+    The network (`sparse_network.augmented_network`) is reduced with sparse matrices
+    (`kron_reduce_sparse`: 9241 buses in ~2 s) and also kept unreduced (`ClassicalModel.network`).
     """
     ppc = getattr(net, "_ppc", None) or {}
     if not getattr(net, "converged", False) or "Ybus" not in ppc.get("internal", {}):
@@ -235,11 +238,8 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
 
     # Augmented network: internal machine nodes nb..nb+n-1 behind j x'd (system base), sparse.
     y = 1.0 / (1j * xd_prime * base / rating)
-    k = np.arange(nb, nb + n)
-    ties = coo_matrix((np.concatenate([y, y, -y, -y]), (np.concatenate([at, k, at, k]), np.concatenate([at, k, k, at]))),
-                      shape=(nb + n, nb + n))
-    Y = block_diag([Ybus + diags(np.conj(s_load) / np.abs(V) ** 2), coo_matrix((n, n))]) + ties
-    Y_red = kron_reduce_sparse(Y, k)
+    Y = augmented_network(Ybus, np.conj(s_load) / np.abs(V) ** 2, at, y)
+    Y_red = kron_reduce_sparse(Y, np.arange(nb, nb + n))
     asym = np.abs(Y_red - Y_red.T).max() / np.abs(Y_red).max()
     if asym > 1e-10:
         raise ValueError(f"net: the reduced admittance is not symmetric (relative {asym:.3g}): phase "
@@ -254,9 +254,10 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
     if err > tol:
         raise ValueError(f"net: P_e(delta0) differs from the power-flow P by {err:.3g} p.u. > tol {tol:g}")
     m = 2.0 * H * rating / (2.0 * np.pi * f_hz * base)
+    network = SparseNetwork.of(Y, n, reduces_to=hash((_rows(G), _rows(B))))
     return ClassicalModel(buses=tuple(buses), elements=tuple(elements), m=m, d=damping_per_inertia * m,
                           E=E, delta0=delta0, p_m=p_m, p_flow=s_flow.real.copy(), G=G, B=B,
-                          base_mva=base, f_hz=f_hz)
+                          base_mva=base, f_hz=f_hz, network=network)
 
 
 def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread: float = P1_SPREAD,
@@ -278,7 +279,7 @@ def network_case(name: str, model: ClassicalModel, *, t_final: float, p1_spread:
     return Case(name=name, m=_floats(model.m), d=_floats(model.d), delta0=_floats(model.delta0), omega0=zeros,
                 p_m=_floats(model.p_m), E=_floats(model.E), G=_rows(model.G), B=_rows(model.B), g_inf=zeros,
                 b_inf=zeros, t_final=t_final, p1_min=p1[0], p1_max=p1[1], m_box=_pairs(m_box),
-                d_box=_pairs(d_box), source=source)
+                d_box=_pairs(d_box), source=source, network=model.network)
 
 
 # A Case holds tuples of floats (hashable, compared by value): the model's arrays as such

@@ -16,7 +16,9 @@ from harness.suites.identification import observations
 from solvers import make_solver
 from solvers import numba_kernels as kernels
 from solvers.base import SolveError
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
+from solvers.classical import keeps_network_sparse
+from solvers.numba_rk import SPARSE_FROM_MACHINES
+from systems.cases import CASES, SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
 from systems.reference import reference
 
 pytest.importorskip("numba")
@@ -99,10 +101,29 @@ def test_network_points_and_parallel_batch():
         np.testing.assert_allclose(points.delta[i], grid.delta[row, col], rtol=1e-8, atol=1e-9)
         np.testing.assert_allclose(points.omega[i], grid.omega[row, col], rtol=1e-8, atol=1e-9)
     parallel = kernels.kernel(kernels.DOP853, False, True, BUS.n)
-    states, failed, _ = parallel(grid.t, grid.P1, solver._system, solver._options)
+    states, failed, _ = parallel(grid.t, grid.P1, solver._system, solver._net, solver._options)
     assert failed == -1
     np.testing.assert_array_equal(states[0], grid.delta)
     np.testing.assert_array_equal(states[1], grid.omega)
+
+
+@pytest.mark.parametrize("name", ["wscc9", "ieee39"])
+def test_the_network_kept_sparse_gives_the_reduced_trajectories(name):
+    """rk4 takes the same steps in both forms, so they differ by the rounding of P_e only; so do
+    the points queries."""
+    case = CASES[name]
+    t, P1 = np.linspace(0.0, case.t_final, 21), np.array([case.p1_min, case.p1_max])
+    reduced, sparse = (_fitted("rk4", case=case, network=form) for form in ("reduced", "sparse"))
+    assert reduced._net is kernels.NO_NETWORK and sparse._system.shape == (case.n, kernels.COUPLING)
+    assert reduced.fit().message == "network: reduced" and sparse.fit().message.startswith("network: sparse")
+    for query in ("solve", "solve_points"):
+        args = (t, P1) if query == "solve" else (t[::2], np.resize(P1, t[::2].size))
+        a, b = getattr(reduced, query)(*args), getattr(sparse, query)(*args)
+        for x, y in ((a.delta, b.delta), (a.omega, b.omega)):
+            assert np.abs(x - y).max() <= 1e-10 * np.abs(x).max()
+    assert not keeps_network_sparse("numba-rk", "auto", case, SPARSE_FROM_MACHINES)
+    assert keeps_network_sparse("numba-rk", "auto", case, case.n)
+    assert not keeps_network_sparse("numba-rk", "auto", SMIB_INFERENCE, 1)
 
 
 def test_rk4_is_fourth_order():
@@ -131,7 +152,7 @@ def test_sensitivities_equal_finite_differences(method, case):
     def states(params):
         system = solver._system.copy()
         system[:, kernels.M], system[:, kernels.D] = params[:n], params[n:]
-        out, failed, _ = solver._sensitivities(t, P1, system, solver._options)
+        out, failed, _ = solver._sensitivities(t, P1, system, kernels.NO_NETWORK, solver._options)
         assert failed == -1
         # blocks: delta, omega, then d delta / d p_j, d omega / d p_j for each j -> p_j last
         return out[0], out[1], np.moveaxis(out[2::2], 0, -1), np.moveaxis(out[3::2], 0, -1)
@@ -175,7 +196,7 @@ def test_repeated_and_shuffled_times_and_parallel():
     solver = _fitted("tight")
     serial = solver.solve(t, P1)
     parallel = kernels.kernel(kernels.DOP853, False, True)  # the kernel of parallel=True (compiles ~5 s)
-    states, failed, _ = parallel(t, P1, solver._system, solver._options)
+    states, failed, _ = parallel(t, P1, solver._system, solver._net, solver._options)
     assert failed == -1
     assert serial.delta.shape == (5, 6, 1)
     np.testing.assert_array_equal(serial.delta, states[0])
@@ -189,7 +210,7 @@ BAD_OPTIONS = [
     ("atol", float("inf")), ("atol", None), ("dt", 0.0), ("dt", 25.0), ("dt", False),
     ("method", "euler"), ("max_steps", 0), ("max_steps", 1.5), ("threads", 0), ("threads", 10_000),
     ("parallel", 1), ("m_bounds", (0.5, 0.1)), ("m_bounds", (0.0, 1.0)), ("d_bounds", (0.1,)),
-    ("d_bounds", (0.1, float("inf"))), ("d_bounds", "ab"),
+    ("d_bounds", (0.1, float("inf"))), ("d_bounds", "ab"), ("network", "dense"), ("network", "sparse"),
 ]
 
 

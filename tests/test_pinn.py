@@ -29,7 +29,7 @@ from solvers.pinn.problems import (
 )
 from solvers.progress import progress_enabled
 from systems import model
-from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations
+from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, case_record
 from systems.reference import reference
 
 # torch.func's first jvp registers decompositions through torch.jit.script, deprecated in torch 2.13
@@ -357,7 +357,7 @@ def test_save_load_round_trip_across_backends(tmp_path, source, target):
 def _record_case(meta, case) -> None:
     """Make the .json name `case`, as a reviewer did: the weights' hash covers the .npz only."""
     info = json.loads(meta.read_text())
-    meta.write_text(json.dumps({**info, "case": dataclasses.asdict(case)}))
+    meta.write_text(json.dumps({**info, "case": case_record(case)}))
 
 
 def test_a_model_recorded_as_another_case_does_not_load(fitted, tmp_path):

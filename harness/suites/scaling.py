@@ -9,7 +9,6 @@ so that the units of one case, each in a process of its own, integrate it once.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import re
 import time
@@ -22,7 +21,7 @@ from harness.runs import Settings
 from harness.suites._base import Suite
 from harness.timing import time_call
 from solvers.base import AbstractSolver
-from systems.cases import Case
+from systems.cases import Case, case_record
 from systems.model import relative_angles
 from systems.reference import REFERENCE_TOL, reference
 
@@ -37,7 +36,7 @@ def scaling_grid(case: Case, settings: Settings) -> tuple[np.ndarray, np.ndarray
 
 
 def _key(case: Case, t: np.ndarray, P1: np.ndarray) -> str:
-    digest = hashlib.sha256(repr(dataclasses.astuple(case)).encode())
+    digest = hashlib.sha256(repr(tuple(case_record(case).values())).encode())
     for part in (t, P1, np.array([REFERENCE_TOL])):
         digest.update(np.ascontiguousarray(part, np.float64).tobytes())
     return f"{re.sub(r'[^A-Za-z0-9_.-]+', '_', case.name)[:40]}-{digest.hexdigest()[:16]}"

@@ -37,7 +37,7 @@ from solvers.pinn.problems import (
     window_problem,
 )
 from solvers.progress import progress_enabled
-from systems.cases import NETWORK, SMIB, Observations
+from systems.cases import NETWORK, SMIB, Observations, case_record
 
 __all__ = ["PinnSolver", "Trainer"]
 
@@ -311,8 +311,8 @@ class PinnSolver(AbstractSolver):
         the case it records (machines, initial state, P1 and t ranges, window edges)."""
         saved = load_model(path)
         if saved["case"] != self.case:
-            differ = [f.name for f in dataclasses.fields(self.case)
-                      if getattr(saved["case"], f.name) != getattr(self.case, f.name)]
+            differ = [name for name, value in case_record(self.case).items()
+                      if getattr(saved["case"], name) != value]
             raise ValueError(f"{path}: saved for case {saved['case'].name!r}, this solver has case "
                              f"{self.case.name!r} (fields that differ: {', '.join(differ)})")
         self.options.update(saved["config"].to_json())

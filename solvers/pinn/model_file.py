@@ -9,7 +9,6 @@ A model may come from a cache another process writes or a file a user copied: lo
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 from collections.abc import Mapping
@@ -20,7 +19,7 @@ import numpy as np
 from solvers.atomic import write_atomically
 from solvers.pinn.architecture import Architecture
 from solvers.pinn.config import PinnConfig
-from systems.cases import Case
+from systems.cases import Case, case_record
 
 __all__ = ["FORMAT_VERSION", "CorruptModelError", "check_model_case", "load_model", "save_model",
            "weights_sha256"]
@@ -83,7 +82,7 @@ def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Archi
         info = {"m": np.atleast_1d(np.asarray(identification["m"], np.float64)).tolist(),
                 "d": np.atleast_1d(np.asarray(identification["d"], np.float64)).tolist(),
                 "architecture": identification["arch"].to_json()}
-    record = {"config": config.to_json(), "case": dataclasses.asdict(case), "architecture": arch.to_json(),
+    record = {"config": config.to_json(), "case": case_record(case), "architecture": arch.to_json(),
               "windows": None if windows is None else np.asarray(windows, np.float64).tolist(),
               "identification": info}
     arrays["record_sha256"] = np.frombuffer(record_sha256(record).encode(), np.uint8)
