@@ -4,7 +4,8 @@ Each builder solves a pandapower power flow and returns the classical model of `
 as a `Case` (system base 100 MVA, 60 Hz; no infinite bus). Machine k = 0 ("generator 1") is
 named in each builder. pandapower is imported inside the builders (it takes seconds to import),
 and each case is built once per process (functools.cache). A case is one builder registered in
-`systems.cases.CASES` by `register_case`; its `<name>_net()` gives the solved net itself.
+`systems.cases.CASES` by `register_case`; its `<name>_net()` gives the solved net itself and
+`<name>_model(net)` its classical model (`GRIDS`: the pair by case name).
 
 Common choices (not from the sources): damping d_k = 0.5 m_k (`network.DAMPING_PER_INERTIA`),
 search boxes (m/4, 4m), (d/4, 4d), P1 = generator 1's operating P +- 30 %, horizon T_FINAL
@@ -15,11 +16,24 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from systems.cases import Case, register_case
-from systems.network import T_FINAL, bus_indices, classical_model, network_case, solve_power_flow
+from systems.network import (
+    T_FINAL,
+    ClassicalModel,
+    bus_indices,
+    classical_model,
+    network_case,
+    solve_power_flow,
+)
 
-__all__ = ["T_FINAL", "ieee39", "ieee39_net", "kundur4", "kundur4_net", "wscc9", "wscc9_net"]
+if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
+    from pandapower.auxiliary import pandapowerNet
+
+__all__ = ["GRIDS", "T_FINAL", "ieee39", "ieee39_model", "ieee39_net", "kundur4", "kundur4_model", "kundur4_net",
+           "wscc9", "wscc9_model", "wscc9_net"]
 
 
 def wscc9_net():
@@ -33,13 +47,10 @@ def wscc9_net():
     return solve_power_flow(net)
 
 
-@register_case("wscc9")
-@functools.cache
-def wscc9() -> Case:
-    """WSCC 3-machine 9-bus system. Machines: generators at buses 1, 2, 3 (MATPOWER case9 gen order;
-    generator 1 = bus 1, the slack, pandapower's ext_grid)."""
-    net = wscc9_net()
-    model = classical_model(
+def wscc9_model(net: pandapowerNet) -> ClassicalModel:
+    """The classical model of the solved `wscc9_net()`. Machines: generators at buses 1, 2, 3
+    (MATPOWER case9 gen order; generator 1 = bus 1, the slack, pandapower's ext_grid)."""
+    return classical_model(
         net, bus_indices(net, [1, 2, 3]),  # MATPOWER case9 gen table rows: buses 1, 2, 3
         # Anderson & Fouad, "Power System Control and Stability", Table 2.1 (stored energy 2364, 640,
         # 301 MW s over 100 MVA; also in Sauer & Pai, "Power System Dynamics and Stability"):
@@ -47,7 +58,13 @@ def wscc9() -> Case:
         xd_prime=[0.0608, 0.1198, 0.1813],  # p.u. on 100 MVA
         f_hz=60.0,  # WSCC: 60 Hz
     )
-    return network_case("wscc9", model, t_final=T_FINAL, source=(
+
+
+@register_case("wscc9")
+@functools.cache
+def wscc9() -> Case:
+    """WSCC 3-machine 9-bus system (`wscc9_model`)."""
+    return network_case("wscc9", wscc9_model(wscc9_net()), t_final=T_FINAL, source=(
         "network: MATPOWER case9 via pandapower.networks.case9 with Anderson & Fouad's voltage set points; "
         "machines (H, x'd): Anderson & Fouad, Power System Control and Stability, Table 2.1; damping "
         "d = 0.5 m (ours)"))
@@ -81,20 +98,23 @@ def kundur4_net():
     return solve_power_flow(net)
 
 
-@register_case("kundur4")
-@functools.cache
-def kundur4() -> Case:
-    """Kundur's two-area 4-machine system. Machines: G1, G2, G3, G4 at buses 1, 2, 3, 4 (the book's
-    numbering; generator 1 = G1; G3 is the slack, pandapower's ext_grid)."""
-    net = kundur4_net()
-    model = classical_model(
+def kundur4_model(net: pandapowerNet) -> ClassicalModel:
+    """The classical model of the solved `kundur4_net()`. Machines: G1, G2, G3, G4 at buses 1, 2,
+    3, 4 (the book's numbering; generator 1 = G1; G3 is the slack, pandapower's ext_grid)."""
+    return classical_model(
         net, bus_indices(net, [1, 2, 3, 4]),
         H=[6.5, 6.5, 6.175, 6.175],  # s on 900 MVA
         xd_prime=0.3,  # p.u. on 900 MVA (every machine)
         machine_mva=900.0,  # ratings 900 MVA, 20 kV
         f_hz=60.0,
     )
-    return network_case("kundur4", model, t_final=T_FINAL, source=(
+
+
+@register_case("kundur4")
+@functools.cache
+def kundur4() -> Case:
+    """Kundur's two-area 4-machine system (`kundur4_model`)."""
+    return network_case("kundur4", kundur4_model(kundur4_net()), t_final=T_FINAL, source=(
         "Kundur, Power System Stability and Control, Example 12.6 (network, loads, dispatch, H, x'd); "
         "power flow by pandapower; damping d = 0.5 m (ours)"))
 
@@ -106,12 +126,9 @@ def ieee39_net():
     return solve_power_flow(pn.case39())  # MATPOWER case39 (Athay, Podmore & Virmani 1979; Pai 1989)
 
 
-@register_case("ieee39")
-@functools.cache
-def ieee39() -> Case:
-    """IEEE 39-bus New England system. Machines: generators at buses 30, 31, ..., 39 (MATPOWER case39
-    gen order; generator 1 = bus 30; bus 31 is the slack, pandapower's ext_grid)."""
-    net = ieee39_net()
+def ieee39_model(net: pandapowerNet) -> ClassicalModel:
+    """The classical model of the solved `ieee39_net()`. Machines: generators at buses 30, 31, ...,
+    39 (MATPOWER case39 gen order; generator 1 = bus 30; bus 31 is the slack, pandapower's ext_grid)."""
     # Machine data by bus, s and p.u. on 100 MVA: M. A. Pai, "Energy Function Analysis for Power
     # System Stability" (1989), 10-machine New England data (after Athay et al. 1979); the same as
     # the IEEE PES TR-18 (2015) benchmark's New England machines, there on 100-2000 MVA machine bases
@@ -122,11 +139,24 @@ def ieee39() -> Case:
         35: (34.8, 0.05), 36: (26.4, 0.049), 37: (24.3, 0.057), 38: (34.5, 0.057), 39: (500.0, 0.006),
     }
     order = list(range(30, 40))  # MATPOWER case39 gen table rows: buses 30, 31, ..., 39
-    model = classical_model(
+    return classical_model(
         net, bus_indices(net, order),
         H=[machines[k][0] for k in order], xd_prime=[machines[k][1] for k in order],
         f_hz=60.0,  # New England: 60 Hz
     )
-    return network_case("ieee39", model, t_final=T_FINAL, source=(
+
+
+@register_case("ieee39")
+@functools.cache
+def ieee39() -> Case:
+    """IEEE 39-bus New England system (`ieee39_model`)."""
+    return network_case("ieee39", ieee39_model(ieee39_net()), t_final=T_FINAL, source=(
         "network: MATPOWER case39 via pandapower.networks.case39; machines (H, x'd): Pai, Energy Function "
         "Analysis for Power System Stability (1989) = IEEE PES TR-18 (2015); damping d = 0.5 m (ours)"))
+
+
+# Case name: (the solved net's builder, the classical model of that net), for the code that needs
+# the network itself (`systems.faults`).
+GRIDS: dict[str, tuple[Callable[[], pandapowerNet], Callable[[pandapowerNet], ClassicalModel]]] = {
+    "wscc9": (wscc9_net, wscc9_model), "kundur4": (kundur4_net, kundur4_model), "ieee39": (ieee39_net, ieee39_model),
+}

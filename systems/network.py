@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
 
 __all__ = ["BOX_FACTOR", "BOX_OFFSET", "DAMPING_PER_INERTIA", "P1_SPREAD", "PF_TOL_MVA", "T_FINAL", "ClassicalModel",
            "bus_indices", "classical_model", "electrical_power", "kron_reduce", "kron_reduce_sparse", "network_case",
-           "solve_power_flow"]
+           "reduce_to_machines", "solve_power_flow"]
 
 # No source gives damping for these classical models. Ours: d_k = 0.5 m_k (1/s), so each
 # electromechanical mode decays as exp(-t d/(2m)) = exp(-t/4 s): visible over a 10 s horizon.
@@ -122,6 +122,20 @@ def kron_reduce_sparse(Y, keep, *, block: int = 256) -> np.ndarray:
             cols = slice(start, start + block)
             reduced[:, cols] -= Y_ke @ lu.solve(Y_ek[:, cols].toarray())
     return reduced
+
+
+def reduce_to_machines(Y, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(G, B) (n, n) p.u., exactly symmetric: an augmented network Y (N, N) (scipy.sparse, its last
+    n nodes the machines') Kron-reduced onto its machine nodes (`kron_reduce_sparse`). ValueError if
+    the reduction is not symmetric to 1e-10 relative (a phase shifter)."""
+    N = Y.shape[0]
+    Y_red = kron_reduce_sparse(Y, np.arange(N - n, N))
+    asym = np.abs(Y_red - Y_red.T).max() / np.abs(Y_red).max()
+    if asym > 1e-10:
+        raise ValueError(f"net: the reduced admittance is not symmetric (relative {asym:.3g}): phase "
+                         "shifters are not supported")
+    Y_red = (Y_red + Y_red.T) / 2  # exactly symmetric, as Case requires
+    return Y_red.real.copy(), Y_red.imag.copy()
 
 
 def _split_nodes(shape: tuple[int, ...], keep) -> tuple[np.ndarray, np.ndarray]:
@@ -239,16 +253,10 @@ def classical_model(net: pandapowerNet, machine_buses, H, xd_prime, f_hz: float,
     # Augmented network: internal machine nodes nb..nb+n-1 behind j x'd (system base), sparse.
     y = 1.0 / (1j * xd_prime * base / rating)
     Y = augmented_network(Ybus, np.conj(s_load) / np.abs(V) ** 2, at, y)
-    Y_red = kron_reduce_sparse(Y, np.arange(nb, nb + n))
-    asym = np.abs(Y_red - Y_red.T).max() / np.abs(Y_red).max()
-    if asym > 1e-10:
-        raise ValueError(f"net: the reduced admittance is not symmetric (relative {asym:.3g}): phase "
-                         "shifters are not supported")
-    Y_red = (Y_red + Y_red.T) / 2  # exactly symmetric, as Case requires
+    G, B = reduce_to_machines(Y, n)
 
     emf = V[at] + 1j * xd_prime * base / rating * np.conj(s_gen / V[at])
     E, delta0 = np.abs(emf), np.angle(emf)
-    G, B = Y_red.real.copy(), Y_red.imag.copy()
     p_m = electrical_power(delta0, E, G, B)
     err = np.abs(p_m - s_flow.real).max()
     if err > tol:

@@ -85,6 +85,17 @@ class SparseNetwork:
     def n_buses(self) -> int:
         return self.Y_bb.shape[0]
 
+    def augmented(self) -> csc_matrix:
+        """The `augmented_network` (nb + n, nb + n) complex csc p.u. this network was made `of`: Y_bb,
+        and machine k's node nb + k tied to bus at[k] by y[k] (the same entries, not recomputed)."""
+        from scipy.sparse import bmat, coo_matrix, csc_matrix
+
+        nb, n = self.n_buses, self.at.size
+        k = np.arange(n)
+        ties = coo_matrix((-self.y, (self.at, k)), shape=(nb, n))
+        machines = coo_matrix((self.y, (k, k)), shape=(n, n))
+        return csc_matrix(bmat([[coo_matrix(self.Y_bb), ties], [ties.T, machines]]))
+
 
 class LUFactors(NamedTuple):
     """The factors of Y_bb and the machines' coefficients, as plain arrays (nb buses, n machines),

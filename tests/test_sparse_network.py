@@ -87,6 +87,7 @@ def test_the_augmented_network_and_its_machine_nodes():
     assert Y[2, 2] == Ybus[2, 2] + 0.2 - 0.1j - 5j
     network = SparseNetwork.of(Y, 2, reduces_to=0)
     assert network.at.tolist() == [2, 0] and np.allclose(network.y, y) and network.n_buses == 3
+    assert np.array_equal(network.augmented().toarray(), Y)  # the same entries, back
     with pytest.raises(ValueError, match="augmented: its last 3 nodes"):
         SparseNetwork.of(Y, 3, reduces_to=0)
     with pytest.raises(ValueError, match="E must be"):
