@@ -198,10 +198,16 @@ class AbstractSolver(abc.ABC):
         """Option overrides, one dict per point of this adapter's work-precision curve, from the
         run's relative tolerances `rtols`. Default: a tolerance sweep (rtol, atol = rtol / 1000)
         for an adapter that `has_tolerance`, else no curve (the adapter is a single point).
-        A fixed-step adapter overrides this to sweep its step."""
+        A fixed-step adapter overrides this to sweep its step (`step_sweep`)."""
         if not self.has_tolerance:
             return []
         return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
+
+    @staticmethod
+    def step_sweep(steps: Sequence[float], rtols: Sequence[float]) -> list[dict[str, Any]]:
+        """The sweep of a fixed step: the coarsest len(rtols) of `steps` (s, coarsest first), as
+        many points as the run sweeps tolerances (a quick run's short sweep stays cheap)."""
+        return [{"dt": float(h)} for h in steps[:len(rtols)]]
 
     @classmethod
     def made_for(cls, config: str, kind: str) -> bool:

@@ -224,7 +224,7 @@ class DiffraxODE(AbstractSolver):
         """A constant step sweeps dt; an adaptive one the tolerances (the base class's sweep)."""
         if self.options["dt"] is not None:
             # Dopri8 reaches the reference's 1e-12 at dt = 0.2 s already: the curve starts coarse
-            return [{"dt": h} for h in (1.0, 0.5, 0.2, 0.1, 0.05, 0.02)]
+            return self.step_sweep((1.0, 0.5, 0.2, 0.1, 0.05, 0.02), rtols)
         return super().precision_sweep(rtols)
 
     def _check_options(self) -> None:

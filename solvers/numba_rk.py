@@ -86,9 +86,9 @@ class NumbaRK(AbstractSolver):
     VARIANTS = ({"parallel": True},)
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
-        """rk4: a sweep of its step `RK4_STEPS` (s), `rtols` ignored; else the tolerance sweep."""
+        """rk4: a sweep of its step `RK4_STEPS` (s, `step_sweep`); else the tolerance sweep."""
         if self.options["method"] == "rk4":
-            return [{"dt": dt} for dt in RK4_STEPS]
+            return self.step_sweep(RK4_STEPS, rtols)
         return super().precision_sweep(rtols)
 
     def _check_options(self) -> None:

@@ -22,7 +22,8 @@ HALF_CYCLE = 1.0 / 120.0  # s, half a cycle at 60 Hz: PSS/E's customary step
 # s, config "tight": the step at which the angles and speeds agree with the reference to ~1e-7
 # (the accuracy the other adapters' "tight" configs give; the error falls 4x per halving)
 TIGHT_STEP = 1e-4
-STEPS = (0.05, 0.02, 1.0 / 60.0, HALF_CYCLE, 0.005, 0.002, 0.001, 5e-4, TIGHT_STEP)  # s, the work-precision sweep
+# s, the work-precision sweep: eight points, as many as the default run's tolerances (`step_sweep`)
+STEPS = (0.05, 0.02, HALF_CYCLE, 0.005, 0.002, 0.001, 5e-4, TIGHT_STEP)
 _FAILURES = {
     kernels.NEWTON_FAILED: "Newton did not converge to newton_tol in max_newton iterations",
     kernels.SINGULAR: "the Newton matrix is singular",
@@ -69,8 +70,8 @@ class Trapezoid(AbstractSolver):
     # to the verdict suite's test (a rival family more; measured on one core), over the test budget
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
-        """A sweep of the step `STEPS` (s); `rtols` ignored."""
-        return [{"dt": dt} for dt in STEPS]
+        """A sweep of the step `STEPS` (s, `step_sweep`)."""
+        return self.step_sweep(STEPS, rtols)
 
     def _check_options(self) -> None:
         """The rules that depend on the case and the machine (the rest is `TrapezoidOptions`)."""

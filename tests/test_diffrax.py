@@ -128,7 +128,8 @@ def test_constant_step_converges():
     t, P1 = standard_grid(SMIB_INFERENCE, n_p1=N_P1)
     ref_delta = reference(SMIB_INFERENCE, t, P1)[0]
     solver = _fitted(dt=1.0)
-    assert [p["dt"] for p in solver.precision_sweep([1e-3])] == [1.0, 0.5, 0.2, 0.1, 0.05, 0.02]
+    assert [p["dt"] for p in solver.precision_sweep([1e-3] * 8)] == [1.0, 0.5, 0.2, 0.1, 0.05, 0.02]
+    assert [p["dt"] for p in solver.precision_sweep([1e-3, 1e-6])] == [1.0, 0.5]  # as many as the tolerances
     errors = []
     for dt in (1.0, 0.5, 0.25):  # dt is an argument of the compiled code: no recompilation
         solver.options["dt"] = dt

@@ -135,8 +135,9 @@ def test_rk4_is_fourth_order():
 
 
 def test_precision_sweep():
-    assert _fitted("rk4").precision_sweep([1e-3]) == [{"dt": dt} for dt in (0.2, 0.1, 0.05, 0.02, 0.01,
-                                                                             0.005, 0.002, 0.001)]
+    steps = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+    assert _fitted("rk4").precision_sweep([1e-3] * 8) == [{"dt": dt} for dt in steps]
+    assert _fitted("rk4").precision_sweep([1e-3, 1e-6, 1e-9]) == [{"dt": dt} for dt in steps[:3]]  # coarsest
     assert make_solver("numba-rk", SMIB_INFERENCE).precision_sweep([1e-4]) == [{"rtol": 1e-4, "atol": 1e-4 * 1e-3}]
 
 

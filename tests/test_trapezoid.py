@@ -11,6 +11,7 @@ import pytest
 from conftest import per_group, per_pair, points_queries
 
 from harness import metrics
+from harness.runs import DEFAULT
 from solvers import make_solver
 from solvers.base import SolveError
 from solvers.trapezoid import HALF_CYCLE, STEPS
@@ -101,7 +102,9 @@ def test_bad_options_raise_a_one_line_value_error(option, value):
 def test_half_cycle_by_default_and_a_sweep_of_steps():
     solver = make_solver("trapezoid", SMIB_INFERENCE)
     assert solver.options["dt"] == HALF_CYCLE == 1 / 120
-    assert solver.precision_sweep([1e-3, 1e-6]) == [{"dt": dt} for dt in STEPS]
+    assert solver.precision_sweep([1e-3] * len(STEPS)) == [{"dt": dt} for dt in STEPS]
+    assert solver.precision_sweep([1e-3, 1e-6]) == [{"dt": dt} for dt in STEPS[:2]]  # the coarsest two
+    assert STEPS == tuple(sorted(STEPS, reverse=True)) and len(STEPS) <= len(DEFAULT.wp_rtols)
 
 
 def test_identify_recovers_m_and_d():
