@@ -626,6 +626,34 @@ def test_bad_options_raise(name, bad):
         make_solver(name, CASE, **bad)
 
 
+def _trains_the_same_network_on(cpu_trained, device: str) -> None:
+    """On a GPU machine: the adapter trained on `device` gives `cpu_trained`'s network to float64
+    rounding, and its fit says where it trained."""
+    gpu = make_solver(cpu_trained.name, CASE, **SMALL, device=device)
+    assert "trained on" in gpu.fit().message
+    np.testing.assert_allclose(gpu.theta, cpu_trained.theta, rtol=1e-6, atol=1e-9)
+
+
+def test_jax_trains_on_the_device_it_is_given_and_answers_queries_on_the_cpu():
+    _need("jax-pinn")
+    import jax
+
+    solver = make_solver("jax-pinn", CASE, **SMALL)
+    assert solver.options["device"] == "cpu"
+    assert "trained on" not in solver.fit().message
+    delta = solver.solve(np.array([0.0, 1.0]), np.array([CASE.p1_min])).delta
+    assert np.isfinite(delta).all()
+    with pytest.raises(ValueError, match="device"):
+        make_solver("jax-pinn", CASE, device="tpu")
+    try:
+        jax.devices("gpu")
+    except RuntimeError:  # refused when the adapter is built, before a run measures
+        with pytest.raises(ValueError, match="option device must be 'cpu' on this machine .* no GPU"):
+            make_solver("jax-pinn", CASE, **SMALL, device="gpu")
+        return
+    _trains_the_same_network_on(solver, "gpu")
+
+
 def test_torch_trains_on_the_device_it_is_given():
     _need("torch-pinn")
     import torch
@@ -642,10 +670,7 @@ def test_torch_trains_on_the_device_it_is_given():
         with pytest.raises(ValueError, match="option device must be 'cpu' on this machine .* no CUDA device"):
             make_solver("torch-pinn", CASE, **SMALL, device="cuda")
         return
-    gpu = make_solver("torch-pinn", CASE, **SMALL, device="cuda")
-    report = gpu.fit()  # on a GPU machine: the same network to float64 rounding, recorded
-    assert "trained on" in report.message
-    np.testing.assert_allclose(gpu.theta, solver.theta, rtol=1e-6, atol=1e-9)
+    _trains_the_same_network_on(solver, "cuda")
 
 
 def test_progress_is_quiet_under_pytest():

@@ -1,4 +1,5 @@
-"""The PINN adapter on JAX (CPU): the shared network under jax.jit, jvp / vmap / jacrev autodiff.
+"""The PINN adapter on JAX: the shared network under jax.jit, jvp / vmap / jacrev autodiff; training
+on the CPU, or on JAX's first GPU with `device="gpu"`, queries on the CPU.
 
 Threads: XLA's CPU thread pool is sized once per process, before the backend starts
 (`solvers.threads.configure_threads`); if it has already started with another size, the message of
@@ -11,20 +12,20 @@ from __future__ import annotations
 import functools
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from solvers.pinn.architecture import Architecture
-from solvers.pinn.common import PinnSolver, Trainer
+from solvers.pinn.common import PinnOptions, PinnSolver, Trainer
 from solvers.pinn.evaluator import Evaluator
 from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
 from solvers.pinn.problems import Problem
 from solvers.threads import configure_threads
 
-__all__ = ["OPS", "JaxPinn"]
+__all__ = ["OPS", "JaxOptions", "JaxPinn"]
 
 
 def _asarray(x: np.ndarray, like: Any) -> Any:
@@ -45,19 +46,49 @@ _JIT_CACHE_SIZE = 8
 _DTYPES = {"float32": np.float32, "float64": np.float64}
 
 
+def _device(kind: str) -> Any:
+    """JAX's first device of `kind` ("cpu" or "gpu"); a RuntimeError when JAX has none."""
+    return jax.devices(kind)[0]
+
+
+class JaxOptions(PinnOptions):
+    """`PinnOptions` and where training computes: device "cpu" (default) or "gpu" (JAX's first GPU).
+    The optimiser's linear algebra and every query stay on the CPU."""
+
+    device: Literal["cpu", "gpu"] = "cpu"
+
+
 class JaxPinn(PinnSolver):
-    """PINN on JAX; see `solvers.pinn.common.PinnSolver` for the options, configs and files."""
+    """PINN on JAX; see `solvers.pinn.common.PinnSolver` for the options, configs and files, and
+    `JaxOptions` for `device`."""
 
     name: ClassVar[str] = "jax-pinn"
+    SCHEMA = JaxOptions
+
+    def _check_options(self) -> None:
+        """The rule that depends on the machine: a "gpu" device must exist (checked when the adapter
+        is built, so that a run refuses it before measuring)."""
+        super()._check_options()
+        if self.options["device"] == "gpu":
+            try:
+                _device("gpu")
+            except RuntimeError:
+                raise ValueError(f"{self.name}: option device must be 'cpu' on this machine (jax "
+                                 f"{jax.__version__} finds no GPU to train case {self.case.name} on), "
+                                 "got 'gpu'") from None
 
     def _prepare_backend(self) -> str:
-        return configure_threads(self.options["threads"])
+        threads = configure_threads(self.options["threads"])
+        if self.options["device"] == "cpu":
+            return threads
+        return "; ".join(filter(None, (threads, f"trained on {_device('gpu').device_kind}")))
 
     def _compile(self, arch: Architecture, problem: Problem, physics: Physics, dtype: str) -> Trainer:
         npdtype = _DTYPES[dtype]
         x64 = jax.enable_x64(dtype == "float64")
-        with x64:
-            data = {key: jnp.asarray(getattr(problem, key), dtype=npdtype)
+        device = _device(self.options["device"])
+        with x64:  # the data committed to the device: the jitted functions run where it is
+            data = {key: jax.device_put(jnp.asarray(getattr(problem, key), dtype=npdtype), device)
                     for key in _DATA_KEYS if getattr(problem, key) is not None}
         residual_fn, jacobian_fn, loss_grad_fn = _jitted(arch, problem, physics, self.case, dtype)
 
@@ -136,8 +167,8 @@ class _JitEvaluator(Evaluator):
             self(t, p)
 
     def prepare(self, theta: np.ndarray) -> Any:
-        with self.x64:
-            return jnp.asarray(theta, self.npdtype)
+        with self.x64:  # committed to the CPU: the queries run there whatever JAX's default device
+            return jax.device_put(jnp.asarray(theta, self.npdtype), _device("cpu"))
 
     def load(self, theta: np.ndarray) -> None:
         self.theta = self.prepare(theta)
