@@ -102,3 +102,20 @@ def per_pair(solver, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndar
     """(delta, omega), (n_s, n), of the pairs (t[i], P1[i]) from one `solve` each."""
     rows = [solver.solve(t[i:i + 1], P1[i:i + 1]) for i in range(t.size)]
     return np.array([r.delta[0, 0] for r in rows]), np.array([r.omega[0, 0] for r in rows])
+
+
+def check_points_as_solves(solver, atol: float = 0.0) -> tuple[np.ndarray, np.ndarray, object]:
+    """Assert that `solver.solve_points` answers both `points_queries` of its case as solves do: the
+    "distinct" pairs as one-point solves (`per_pair`), the "shared" ones as one solve per P1 at its
+    pairs' times (`per_group`), to `atol` (0: the same bits), shapes (n_s, n), the t = 0 pairs at
+    the case's delta0. Returns the "shared" query's t, P1 and points."""
+    case = solver.case
+    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
+        t, P1 = points_queries(case)[pattern]
+        points = solver.solve_points(t, P1)
+        delta, omega = expect(solver, t, P1)
+        assert points.delta.shape == points.omega.shape == (t.size, case.n)
+        np.testing.assert_allclose(points.delta, delta, rtol=0, atol=atol)
+        np.testing.assert_allclose(points.omega, omega, rtol=0, atol=atol)
+        np.testing.assert_array_equal(points.delta[t == 0.0], np.broadcast_to(case.delta0, (1, case.n)))
+    return t, P1, points

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import THREE_MACHINES, max_rel, per_group, per_pair, points_queries
+from conftest import THREE_MACHINES, check_points_as_solves, max_rel
 
 from harness import metrics
 from solvers import make_solver
@@ -234,14 +234,7 @@ def test_solve_points_integrates_once_per_distinct_p1(name):
     P1 as one solve of that P1 at its pairs' times; scrambled order and t = 0 kept."""
     solver = make_solver(name, SMIB_INFERENCE)
     solver.fit()
-    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
-        t, P1 = points_queries(SMIB_INFERENCE)[pattern]
-        points = solver.solve_points(t, P1)
-        delta, omega = expect(solver, t, P1)
-        assert points.delta.shape == points.omega.shape == (t.size, 1)
-        np.testing.assert_allclose(points.delta, delta, rtol=0, atol=1e-10)
-        np.testing.assert_allclose(points.omega, omega, rtol=0, atol=1e-10)
-        np.testing.assert_array_equal(points.delta[t == 0.0], 0.1)
+    check_points_as_solves(solver, atol=1e-10)
 
 
 @pytest.mark.parametrize("name", CLASSICAL)

@@ -9,7 +9,7 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import per_group, per_pair, points_queries
+from conftest import check_points_as_solves, per_pair
 
 from harness import metrics
 from harness.suites.identification import observations
@@ -242,14 +242,7 @@ def test_solve_points_in_one_call_has_the_bits_of_solve(method, case, parallel):
     sharing P1 those of one solve of that P1 at its pairs' times, and so the per-pair solves' values
     to the tolerance; scrambled order and t = 0 kept."""
     solver = _fitted("tight", case, parallel=parallel, **TIGHT[method])
-    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
-        t, P1 = points_queries(case)[pattern]
-        points = solver.solve_points(t, P1)
-        delta, omega = expect(solver, t, P1)
-        assert points.delta.shape == points.omega.shape == (t.size, case.n)
-        np.testing.assert_array_equal(points.delta, delta)
-        np.testing.assert_array_equal(points.omega, omega)
-        np.testing.assert_array_equal(points.delta[t == 0.0], np.broadcast_to(case.delta0, (1, case.n)))
+    t, P1, points = check_points_as_solves(solver)
     delta, omega = per_pair(solver, t, P1)
     np.testing.assert_allclose(points.delta, delta, rtol=0, atol=1e-8)
     np.testing.assert_allclose(points.omega, omega, rtol=0, atol=1e-8)

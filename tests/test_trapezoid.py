@@ -8,7 +8,7 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import per_group, per_pair, points_queries
+from conftest import check_points_as_solves
 
 from harness import metrics
 from harness.runs import DEFAULT
@@ -61,13 +61,7 @@ def test_points_and_parallel_have_the_bits_of_solve(parallel):
     """Pairs of distinct P1 have the bits of one-point solves, pairs sharing P1 those of one solve of
     that P1 at its pairs' times; the parallel kernel gives the serial one's bits."""
     solver = _fitted(WSCC9, parallel=parallel)
-    for pattern, expect in (("distinct", per_pair), ("shared", per_group)):
-        t, P1 = points_queries(WSCC9)[pattern]
-        points = solver.solve_points(t, P1)
-        delta, omega = expect(solver, t, P1)
-        assert points.delta.shape == points.omega.shape == (t.size, WSCC9.n)
-        np.testing.assert_array_equal(points.delta, delta)
-        np.testing.assert_array_equal(points.omega, omega)
+    check_points_as_solves(solver)
     t, P1 = np.array([7.5, 0.0, 2.0, 7.5]), np.linspace(WSCC9.p1_min, WSCC9.p1_max, 3)
     serial = _fitted(WSCC9).solve(t, P1)
     traj = solver.solve(t, P1)
