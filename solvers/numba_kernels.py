@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _c853
@@ -38,7 +39,7 @@ from systems.cases import Case
 from systems.model import coupling
 from systems.sparse_network import LUFactors
 
-__all__ = ["DOP853", "DOPRI5", "METHODS", "NO_NETWORK", "RK4", "kernel", "system_array"]
+__all__ = ["DOP853", "DOPRI5", "METHODS", "NO_NETWORK", "RK4", "check_threads", "kernel", "system_array"]
 
 # Columns of the packed system (see the module docstring); COUPLING + j is C[k, j],
 # COUPLING + n + j is S[k, j].
@@ -49,6 +50,14 @@ M, D, DELTA0, OMEGA0, P_M, C_INF, S_INF, COUPLING = range(8)
 # coupling; the network kept sparse (`net`).
 UNCOUPLED, DENSE, SPARSE = 0, 1, 2
 NO_NETWORK = LUFactors.empty()
+
+
+def check_threads(owner: str, threads: int) -> None:
+    """The rule of a numba adapter's `threads` option: at most numba's NUMBA_NUM_THREADS, or a
+    ValueError starting with `owner`."""
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"{owner}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
+                         f"(numba's NUMBA_NUM_THREADS), got {threads!r}")
 
 
 def system_array(case: Case, sparse: bool = False) -> np.ndarray:

@@ -96,9 +96,7 @@ class NumbaRK(AbstractSolver):
         options = self.options
         check_step(self.name, options["dt"], self.case)
         keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
-        if options["threads"] > numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
-                             f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")
+        kernels.check_threads(self.name, options["threads"])
 
     def _prepare(self, sensitivities: bool = False) -> None:
         """Packed system and options, and the compiled kernels (numba compiles, or loads from its

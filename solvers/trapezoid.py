@@ -12,7 +12,7 @@ import numpy as np
 from solvers import trapezoid_kernels as kernels
 from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, SolveError
 from solvers.classical import ObservationLayout, PointGroups, check_step, identify_least_squares, search_boxes
-from solvers.numba_kernels import NOT_FINITE, D, M, system_array
+from solvers.numba_kernels import NOT_FINITE, D, M, check_threads, system_array
 from solvers.options import Bounds, OptionSchema, PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
 
@@ -78,9 +78,7 @@ class Trapezoid(AbstractSolver):
         """The rules that depend on the case and the machine (the rest is `TrapezoidOptions`)."""
         options = self.options
         check_step(self.name, options["dt"], self.case)
-        if options["threads"] > numba.config.NUMBA_NUM_THREADS:
-            raise ValueError(f"{self.name}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
-                             f"(numba's NUMBA_NUM_THREADS), got {options['threads']!r}")
+        check_threads(self.name, options["threads"])
 
     def _fit(self) -> None:
         """Packed system and options, and the compiled kernel (numba compiles, or loads from its
