@@ -131,31 +131,6 @@ def _mode(system, net, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _dense_power(system, scratch, n, k):
-    """P_e,k (p.u.) on the dense coupling, with the cos and sin of every angle in scratch[:n] and
-    scratch[n:2n]: c_k (C c - S s)_k + s_k (C s + S c)_k + c_inf_k c_k + s_inf_k s_k (`systems.model`)."""
-    ck, sk = scratch[k], scratch[n + k]
-    cc = cs = sc = ss = 0.0
-    for j in range(n):
-        ckj, skj = system[k, COUPLING + j], system[k, COUPLING + n + j]
-        cj, sj = scratch[j], scratch[n + j]
-        cc += ckj * cj
-        cs += ckj * sj
-        sc += skj * cj
-        ss += skj * sj
-    return ck * (cc - ss) + sk * (cs + sc) + (system[k, C_INF] * ck + system[k, S_INF] * sk)
-
-
-@njit(cache=True, error_model="numpy")
-def _dense_slope(system, scratch, n, k, j):
-    """d P_e,k / d delta_j (p.u./rad) for j != k on the dense coupling, scratch as `_dense_power`'s:
-    C_kj sin(delta_k - delta_j) - S_kj cos(delta_k - delta_j). P_e,k depends on the differences, so
-    d / d delta_k is minus the sum of these, plus the infinite bus's s_inf_k c_k - c_inf_k s_k."""
-    ck, sk, cj, sj = scratch[k], scratch[n + k], scratch[j], scratch[n + j]
-    return system[k, COUPLING + j] * (sk * cj - ck * sj) - system[k, COUPLING + n + j] * (ck * cj + sk * sj)
-
-
-@njit(cache=True, error_model="numpy")
 def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
     """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `mode` from `_mode`
     (UNCOUPLED: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,) work space: cos
@@ -178,8 +153,17 @@ def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
             ck, sk = scratch[k], scratch[n + k]
             pe = scratch[two_n + k] + (system[k, C_INF] * ck + system[k, S_INF] * sk)
         elif coupled:
+            # P_e,k = c_k (C c - S s)_k + s_k (C s + S c)_k + c_inf_k c_k + s_inf_k s_k (systems.model)
             ck, sk = scratch[k], scratch[n + k]
-            pe = _dense_power(system, scratch, n, k)
+            cc = cs = sc = ss = 0.0
+            for j in range(n):
+                ckj, skj = system[k, COUPLING + j], system[k, COUPLING + n + j]
+                cj, sj = scratch[j], scratch[n + j]
+                cc += ckj * cj
+                cs += ckj * sj
+                sc += skj * cj
+                ss += skj * sj
+            pe = ck * (cc - ss) + sk * (cs + sc) + (system[k, C_INF] * ck + system[k, S_INF] * sk)
         else:
             pe = system[k, S_INF] * math.sin(y[k])
         acc = (P[k] - d * omega - pe) / m
@@ -187,11 +171,15 @@ def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
         out[n + k] = acc
         if sens:
             if coupled:
-                # scratch[2n + j] = d P_e,k / d delta_j for j != k; dpe = d P_e,k / d delta_k
+                # scratch[2n + j] = d P_e,k / d delta_j = C_kj sin(d_k - d_j) - S_kj cos(d_k - d_j)
+                # for j != k; P_e,k depends on the differences, so d / d delta_k is minus their sum,
+                # plus the infinite bus's term
                 dpe = system[k, S_INF] * ck - system[k, C_INF] * sk
                 for j in range(n):
                     if j != k:
-                        g = _dense_slope(system, scratch, n, k, j)
+                        cj, sj = scratch[j], scratch[n + j]
+                        g = (system[k, COUPLING + j] * (sk * cj - ck * sj)
+                             - system[k, COUPLING + n + j] * (ck * cj + sk * sj))
                         scratch[two_n + j] = g
                         dpe -= g
             else:

@@ -39,6 +39,7 @@ from numba import njit, prange
 
 from solvers.numba_kernels import (
     C_INF,
+    COUPLING,
     NO_NETWORK,
     NOT_FINITE,
     OK,
@@ -47,8 +48,6 @@ from solvers.numba_kernels import (
     UNCOUPLED,
     D,
     M,
-    _dense_power,
-    _dense_slope,
     _jit_variant,
     _mode,
     _name_for_cache,
@@ -82,12 +81,24 @@ def network(delta, pe, jac, with_jac, system, n, coupled, scratch):
         scratch[k] = math.cos(delta[k])
         scratch[n + k] = math.sin(delta[k])
     for k in range(n):
-        pe[k] = _dense_power(system, scratch, n, k)
-        if with_jac:  # the diagonal: minus the off-diagonal slopes, plus the infinite bus's term
-            diagonal = system[k, S_INF] * scratch[k] - system[k, C_INF] * scratch[n + k]
+        ck, sk = scratch[k], scratch[n + k]
+        cc = cs = sc = ss = 0.0
+        for j in range(n):
+            ckj, skj = system[k, COUPLING + j], system[k, COUPLING + n + j]
+            cj, sj = scratch[j], scratch[n + j]
+            cc += ckj * cj
+            cs += ckj * sj
+            sc += skj * cj
+            ss += skj * sj
+        pe[k] = ck * (cc - ss) + sk * (cs + sc) + (system[k, C_INF] * ck + system[k, S_INF] * sk)
+        if with_jac:
+            # d P_e,k / d delta_j = C_kj sin(d_k - d_j) - S_kj cos(d_k - d_j), j != k; P_e,k depends
+            # on the differences, so d / d delta_k is minus their sum, plus the infinite bus's term
+            diagonal = system[k, S_INF] * ck - system[k, C_INF] * sk
             for j in range(n):
                 if j != k:
-                    g = _dense_slope(system, scratch, n, k, j)
+                    cj, sj = scratch[j], scratch[n + j]
+                    g = system[k, COUPLING + j] * (sk * cj - ck * sj) - system[k, COUPLING + n + j] * (ck * cj + sk * sj)
                     jac[k, j] = g
                     diagonal -= g
             jac[k, k] = diagonal
