@@ -14,12 +14,13 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from numbers import Real
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 __all__ = [
     "CASES",
+    "FAULT_SCENARIO",
     "IDENTIFICATION_PAIRS",
     "KINDS",
     "NETWORK",
@@ -28,9 +29,12 @@ __all__ = [
     "SMIB_CASES",
     "SMIB_IDENTIFICATION",
     "SMIB_INFERENCE",
+    "STEP_SCENARIO",
     "CarriedNetwork",
     "Case",
+    "Fault",
     "Observations",
+    "Scenario",
     "case_record",
     "check_array",
     "check_number",
@@ -184,6 +188,37 @@ class CarriedNetwork(Protocol):
     def reduces_to(self) -> int: ...
 
 
+class Scenario(NamedTuple):
+    """What a case's scenario parameter is (`Case.scenario`): its symbol in tables and plots, its
+    unit and what it means. Every case has exactly one, the second argument of `solve(t, P1)`,
+    ranging over [Case.p1_min, Case.p1_max]."""
+
+    symbol: str
+    unit: str
+    meaning: str
+
+
+# A step case's parameter: generator 1's mechanical power, stepped at t = 0 (the paper's scenario).
+STEP_SCENARIO = Scenario("P1", "p.u.", "generator 1's mechanical power")
+# A fault case's parameter: the time the fault is cleared (`Fault`).
+FAULT_SCENARIO = Scenario("t_c", "s", "clearing time")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A switched network (a fault case, issue 23's study): on 0 <= t < t_c the fault-on network
+    (G_on, B_on), from the clearing time t_c on the post-fault one (G_post, B_post); each (n, n)
+    symmetric p.u., Kron-reduced onto the machines like `Case.G`, `Case.B` (the pre-fault network,
+    which set the equilibrium the case starts from). `name` names the contingency
+    (`systems.faults.Contingency`). Built by `systems.faults.fault_case`."""
+
+    name: str
+    G_on: Matrix
+    B_on: Matrix
+    G_post: Matrix
+    B_post: Matrix
+
+
 @dataclass(frozen=True)
 class Case:
     """An N-machine classical swing system and its scenario: pure data.
@@ -196,9 +231,12 @@ class Case:
 
     the Kron-reduced network seen from the internal machine nodes (the paper's lossless Eq. 1 is
     G = 0), plus an optional infinite bus: a machine of fixed angle 0 and voltage V_inf = 1 p.u.
-    whose coupling column is (g_inf, b_inf). The scenario: P = p_m with generator 1's entry replaced
-    by P1, for P1 in [p1_min, p1_max] p.u., from delta(0) = delta0, omega(0) = omega0, on
-    t in [0, t_final] s.
+    whose coupling column is (g_inf, b_inf), from delta(0) = delta0, omega(0) = omega0, on
+    t in [0, t_final] s. Each case has one scenario parameter (`scenario`), in [p1_min, p1_max]:
+    - a step case (fault None): P1 p.u., P = p_m with generator 1's entry replaced by P1;
+    - a fault case (`fault` a `Fault`): the clearing time t_c s, 0 < p1_min <= p1_max < t_final;
+      P = p_m throughout, the network (G, B) replaced by the fault-on one on [0, t_c) and by the
+      post-fault one from t_c on (`phase`).
 
     Units (system base): m (n,) p.u. s^2/rad (M = 2 H S_rated / (omega_s S_base)), d (n,) p.u. s/rad,
     E (n,) p.u., G, B (n, n) symmetric p.u., g_inf, b_inf (n,) p.u., p_m (n,) p.u., delta0 (n,) rad,
@@ -230,6 +268,7 @@ class Case:
     m_box: tuple[tuple[float, float], ...]
     d_box: tuple[tuple[float, float], ...]
     source: str = ""
+    fault: Fault | None = None
     network: CarriedNetwork | None = dataclasses.field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -251,11 +290,44 @@ class Case:
             raise ValueError(f"Case.t_final must be > 0, got {self.t_final!r}")
         if not self.p1_min <= self.p1_max:
             raise ValueError(f"Case.p1_min must be <= p1_max, got {self.p1_min!r} > {self.p1_max!r}")
+        if self.fault is not None:
+            self._check_fault(n)
         if self.network is not None:
             if not isinstance(self.network, CarriedNetwork) or np.size(self.network.at) != n:
                 raise ValueError(f"Case.network must be a SparseNetwork of {n} machines or None")
             if self.network.reduces_to != hash((self.G, self.B)):
                 raise ValueError("Case.network is not the network of this case's G and B (pass network=None)")
+
+    def _check_fault(self, n: int) -> None:
+        if not isinstance(self.fault, Fault):
+            raise ValueError(f"Case.fault must be a systems.cases.Fault or None, got {type(self.fault).__name__}")  # noqa: TRY004 - the contract is ValueError
+        if self.has_infinite_bus:
+            raise ValueError("Case.fault: a fault case has no infinite bus (its networks are the machines' alone)")
+        matrices = {key: _matrix(f"fault.{key}", getattr(self.fault, key), n)
+                    for key in ("G_on", "B_on", "G_post", "B_post")}
+        object.__setattr__(self, "fault", Fault(name=str(self.fault.name), **matrices))
+        if not 0 < self.p1_min <= self.p1_max < self.t_final:
+            raise ValueError(f"Case {self.name!r}: the clearing times [p1_min, p1_max] = [{self.p1_min!r}, "
+                             f"{self.p1_max!r}] s must lie in (0, t_final = {self.t_final!r}) s")
+
+    @property
+    def scenario(self) -> Scenario:
+        """What the scenario parameter (the `P1` of `solve(t, P1)`, over [p1_min, p1_max]) is:
+        `STEP_SCENARIO` (P1, p.u.) or, for a fault case, `FAULT_SCENARIO` (t_c, s)."""
+        return STEP_SCENARIO if self.fault is None else FAULT_SCENARIO
+
+    def phase(self, which: str) -> Case:
+        """A fault case's network in one phase as a step case of its own: `which` 'on' (the
+        fault-on network) or 'post' (the post-fault one) in place of G, B, no fault, no carried
+        network, and the scenario range the single point P1 = p_m[0] (so that `powers` gives p_m).
+        The dynamics of the phase from any state; a ValueError for a step case or another `which`."""
+        if self.fault is None:
+            raise ValueError(f"case {self.name!r} is no fault case: it has no phases")
+        if which not in ("on", "post"):
+            raise ValueError(f"phase must be 'on' or 'post', got {which!r}")
+        G, B = getattr(self.fault, f"G_{which}"), getattr(self.fault, f"B_{which}")
+        return dataclasses.replace(self, name=f"{self.name}[{which}]", G=G, B=B, fault=None, network=None,
+                                   p1_min=self.p_m[0], p1_max=self.p_m[0])
 
     @property
     def n(self) -> int:
@@ -285,16 +357,24 @@ class Case:
         return dataclasses.replace(self, m=m, d=d, name=name or f"{self.name}[m={label[0]},d={label[1]}]")
 
     def powers(self, P1: np.ndarray) -> np.ndarray:
-        """Mechanical powers (len(P1), n) p.u.: p_m with generator 1's replaced by each P1."""
+        """Mechanical powers (len(P1), n) p.u.: p_m with generator 1's replaced by each P1 (a step
+        case); p_m in every row for a fault case, whose scenario parameter is no power."""
         P = np.tile(np.asarray(self.p_m, np.float64), (np.size(P1), 1))
-        P[:, 0] = P1
+        if self.fault is None:
+            P[:, 0] = P1
         return P
 
 
 def case_record(case: Case) -> dict[str, Any]:
     """The fields that define `case` (every field but the derived `network`), by name, in field
-    order: what a case compares and hashes by, and what is saved or keyed of it."""
-    return {f.name: getattr(case, f.name) for f in dataclasses.fields(case) if f.compare}
+    order, plain data (a `Fault` as a dict): what a case compares and hashes by, and what is saved
+    or keyed of it. A step case's record has no `fault` entry."""
+    record = {f.name: getattr(case, f.name) for f in dataclasses.fields(case) if f.compare}
+    if case.fault is None:
+        del record["fault"]
+    else:
+        record["fault"] = dataclasses.asdict(case.fault)
+    return record
 
 
 def smib_case(name: str, m: float, d: float, b: float, delta0: float, omega0: float, t_final: float,

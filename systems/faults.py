@@ -21,18 +21,29 @@ Buses are named by the source's bus numbers (pandapower's `bus.name`, as the cas
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from systems.cases import Case, Fault, register_case
 from systems.network import ClassicalModel, bus_indices, reduce_to_machines
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
     from scipy.sparse import csc_matrix
 
-__all__ = ["CONTINGENCIES", "Contingency", "FaultNetworks", "case_fault_networks", "contingencies", "fault_networks"]
+__all__ = ["CLEARING_TIMES", "CONTINGENCIES", "FAULT_CASES", "FAULT_T_FINAL", "Contingency", "FaultNetworks",
+           "case_fault_networks", "contingencies", "fault_case", "fault_networks"]
+
+# Every fault case's scenario: the clearing time t_c in this range (s), on this horizon (s), a
+# first-swing study window (the reference CCTs of the contingencies below lie inside the range:
+# tests/test_fault_cases.py).
+CLEARING_TIMES = (0.05, 0.40)
+FAULT_T_FINAL = 3.0
 
 
 @dataclass(frozen=True)
@@ -193,3 +204,45 @@ def case_fault_networks(case_name: str) -> dict[str, FaultNetworks]:
     net = build_net()
     model = build_model(net)
     return {c.name: fault_networks(net, model, c) for c in found}
+
+
+def _matrix(x: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(row) for row in np.asarray(x, np.float64).tolist())
+
+
+def fault_case(case: Case, networks: FaultNetworks, *, t_final: float = FAULT_T_FINAL,
+               clearing_times: tuple[float, float] = CLEARING_TIMES) -> Case:
+    """The fault case of `networks`' contingency on the step case `case` (whose G, B must be the
+    pre-fault network of `networks`): named '<case>-<contingency>', from the same equilibrium at
+    rest, the scenario parameter the clearing time t_c in `clearing_times` (s) on [0, t_final] s,
+    no carried sparse network (the phases are reduced ones)."""
+    if not (np.array_equal(case.G, networks.G_pre) and np.array_equal(case.B, networks.B_pre)):
+        raise ValueError(f"case {case.name!r}: its network is not the pre-fault network of "
+                         f"{networks.contingency.name!r}")
+    name = networks.contingency.name
+    fault = Fault(name=name, G_on=_matrix(networks.G_on), B_on=_matrix(networks.B_on),
+                  G_post=_matrix(networks.G_post), B_post=_matrix(networks.B_post))
+    return dataclasses.replace(
+        case, name=f"{case.name}-{name}", t_final=t_final, p1_min=clearing_times[0], p1_max=clearing_times[1],
+        fault=fault, network=None, source=f"{case.source}; fault: {name} (systems.faults.CONTINGENCIES)")
+
+
+@functools.cache
+def _fault_cases(case_name: str) -> dict[str, Case]:
+    from systems.cases import CASES
+
+    case = CASES[case_name]
+    return {c: fault_case(case, nets) for c, nets in case_fault_networks(case_name).items()}
+
+
+def _builder(case_name: str, contingency: str) -> Callable[[], Case]:
+    return lambda: _fault_cases(case_name)[contingency]
+
+
+# The fault cases, '<case>-<contingency>', by the step case they fault: registered in
+# `systems.cases.CASES` (each case's net is solved once for all of its contingencies).
+FAULT_CASES: dict[str, tuple[str, ...]] = {
+    case_name: tuple(f"{case_name}-{c.name}" for c in found) for case_name, found in CONTINGENCIES.items()}
+for _case_name, _found in CONTINGENCIES.items():
+    for _c in _found:
+        register_case(f"{_case_name}-{_c.name}")(_builder(_case_name, _c.name))
