@@ -162,6 +162,9 @@ class AbstractSolver(abc.ABC):
     - `compiled`: queries run in compiled code (numba, XLA), not a Python-driven integrator loop;
       the verdicts rank the best Python-driven and the best compiled classical option apart;
     - `does_work`: False only for the do-nothing adapter that measures the interface itself;
+    - `handles_faults`: it integrates a fault case (`Case.fault`: the network switched at the
+      clearing time t_c, the scenario parameter) with the switch exact; an adapter without it
+      refuses a fault case (ValueError), never integrating it as a step case;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
       mode, a compiled query path);
     - `QUERY_OPTIONS`: its options that change only how a model is queried or how fast it is
@@ -188,6 +191,7 @@ class AbstractSolver(abc.ABC):
     can_save: ClassVar[bool] = False
     compiled: ClassVar[bool] = False
     does_work: ClassVar[bool] = True
+    handles_faults: ClassVar[bool] = False
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset()
@@ -247,6 +251,9 @@ class AbstractSolver(abc.ABC):
                 f"unknown option(s) {', '.join(sorted(unknown))} for {self.name}; "
                 f"known: {', '.join(self.OPTIONS) or 'none'}"
             )
+        if case.fault is not None and not self.handles_faults:
+            raise ValueError(f"{self.name} does not integrate fault cases (case {case.name!r} switches its network "
+                             "at the clearing time); adapters that do: those with handles_faults")
         self.case = case
         self.config = config
         self.options: dict[str, Any] = {**self.OPTIONS, **self.CONFIGS[config], **options}
