@@ -46,7 +46,8 @@ def figure3(frames: dict, names: Labels):
     acc = acc[acc["seed"] == acc.groupby(["solver", "config"])["seed"].transform("min")]
     specs = list(dict.fromkeys(label(acc)))
     fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
-    t, _ = standard_grid(CASES[acc["case"].iloc[0]])
+    case = CASES[acc["case"].iloc[0]]
+    t, _ = standard_grid(case)
     for row, quantity in enumerate(("delta", "omega")):
         for col, which in enumerate(("best", "worst")):
             ax = axes[row, col]
@@ -57,7 +58,7 @@ def figure3(frames: dict, names: Labels):
                 if key not in ref_drawn:
                     ref = np.asarray(r[f"{which}_ref"], float).reshape(t.size, -1)
                     ax.plot(t, ref, color="black", lw=2.5, alpha=0.35,
-                            label=[f"reference, P1={r[f'{which}_P1']:.4g}"] + ["_"] * (ref.shape[1] - 1))
+                            label=[f"reference, {case.scenario.symbol}={r[f'{which}_P1']:.4g}"] + ["_"] * (ref.shape[1] - 1))
                     ref_drawn.add(key)
                 pred = np.asarray(r[f"{which}_pred"], float).reshape(t.size, -1)
                 lines = ax.plot(t, pred, lw=1.2, ls="--")

@@ -49,7 +49,7 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
         out.append(("points batch", f"{settings.points_batch} single points, one call", t_points, p_points))
         if settings.points_distinct_p1:
             t_points, p_points = scattered_points(case, settings.points_batch, settings.points_distinct_p1)
-            out.append(("points batch", (f"{settings.points_batch} single points over {settings.points_distinct_p1} P1, "
+            out.append(("points batch", (f"{settings.points_batch} single points over {settings.points_distinct_p1} {case.scenario.symbol}, "
                                         "one call"), t_points, p_points))
     return out
 
