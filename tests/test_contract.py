@@ -190,6 +190,11 @@ def test_every_adapter_solves_a_multi_machine_case(wscc9, name):
         np.testing.assert_allclose(points.delta, [ref_delta[0, 0], ref_delta[1, 1]], rtol=1e-6, atol=1e-6)
 
 
+# Fault adapters whose fault solve this test does not run: diffrax compiles it for ~10 s a shape on
+# one core (measured), beyond the suite's budget; scripts/fault_grid.py checks it against the reference.
+FAULTS_COMPILE_SLOWLY = frozenset({"diffrax"})
+
+
 @pytest.fixture(scope="module")
 def wscc9_fault():
     pytest.importorskip("pandapower")
@@ -211,6 +216,8 @@ def test_every_adapter_solves_a_fault_case_or_refuses_it(wscc9_fault, name):
         with pytest.raises(ValueError, match="handles_faults"):
             cls(case)
         return
+    if name in FAULTS_COMPILE_SLOWLY:
+        pytest.skip(f"{name}'s fault solve compiles too slowly for the suite (scripts/fault_grid.py checks it)")
     solver = make_solver(name, case, **small_options(name)) if cls.trains else make_solver(name, case, "tight")
     fit_for_tests(solver)
     t, T_c = np.array([0.0, 0.1, 1.0, 2.5]), np.array([0.15, 0.1])

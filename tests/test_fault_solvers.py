@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import check_points_as_solves, require
+from conftest import check_points_as_solves, fit_for_tests, require
 
 from solvers import make_solver
 from systems.cases import CASES, Observations
@@ -16,7 +16,7 @@ CASE = "wscc9-bus8-line8-9"
 STABLE, UNSTABLE = 0.1, 0.3  # s, clearing times either side of the case's critical one
 # name -> (options of its tight run, bound on the max abs error of the angles against the centre of
 # inertia (rad) and of the speeds (rad/s) over t in [0, 3] s at STABLE and UNSTABLE, a few times
-# what each measured: see the report in docs/faults.md)
+# what each measured: docs/fault-solvers.md)
 TIGHT = {
     "numba-rk": ({}, 1e-7),
     "trapezoid": ({}, 1e-4),
@@ -42,7 +42,7 @@ def fitted(case):
         if (name, config) not in solvers:
             require(name)
             solvers[name, config] = make_solver(name, case, config, **TIGHT[name][0])
-            solvers[name, config].fit()
+            fit_for_tests(solvers[name, config])
         return solvers[name, config]
 
     return get
