@@ -86,7 +86,8 @@ class Trapezoid(AbstractSolver):
 
     def _fit(self) -> None:
         """Packed system and options, and the compiled kernel (numba compiles, or loads from its
-        cache, on the first call: here, on times t = 0, which compile every path and step none)."""
+        cache, on the first call: here, on times t = 0, which compile every path and step none; a
+        fault case's cleared at t_c = 0)."""
         options, case = self.options, self.case
         self._options = np.array([options["dt"], options["newton_tol"], options["max_newton"]], np.float64)
         self.stats = np.zeros((0, len(kernels.STATS)))
@@ -96,8 +97,9 @@ class Trapezoid(AbstractSolver):
         else:
             self._system, self._post = system_array(case.phase("on")), system_array(case.phase("post"))
             self._fault = fault_kernel(options["parallel"])
-        self._solve(np.zeros(2), np.full(2, case.p1_min))
-        self._solve_points(np.zeros(2), np.full(2, case.p1_min))
+        scenario = np.full(2, case.p1_min if case.fault is None else 0.0)
+        self._solve(np.zeros(2), scenario)
+        self._solve_points(np.zeros(2), scenario)
 
     def _run(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, P1: np.ndarray, system: np.ndarray,
              options: np.ndarray, shared: bool) -> np.ndarray:

@@ -8,6 +8,7 @@ import pytest
 from conftest import check_points_as_solves, fit_for_tests, require
 
 from solvers import make_solver
+from solvers.base import SolveError
 from systems.cases import CASES, Observations
 from systems.model import relative_angles, rhs
 from systems.reference import reference
@@ -130,3 +131,14 @@ def test_a_negative_clearing_time_and_identification_are_refused(case, tight, na
     obs = Observations([0.5, 1.0], [0.1, 0.1], [[0.2, 0.1, 0.0], [0.3, 0.1, 0.0]])
     with pytest.raises(ValueError, match="identification on a fault case is not supported"):
         solver.identify(obs)
+
+
+@pytest.mark.parametrize(("name", "options"), [("numba-rk", {"max_steps": 20}), ("trapezoid", {"max_newton": 1})])
+def test_a_failed_integration_names_the_clearing_time(case, name, options):
+    require(name)
+    solver = make_solver(name, case, threads=1, **options)
+    solver.fit()
+    with pytest.raises(SolveError, match=f"^{name}: integration failed at t_c=0.3: "):
+        solver.solve([0.0, 3.0], [0.3])
+    with pytest.raises(SolveError, match=f"^{name}: integration failed at t_c=0.3: "):
+        solver.solve_points([3.0], [0.3])
