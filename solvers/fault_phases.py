@@ -10,13 +10,14 @@ t_c (the system is autonomous). A query at t = t_c answers the state at t_c.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
 
 from systems.cases import Case
 
-__all__ = ["PhaseIntegrator", "switched_states"]
+__all__ = ["PhaseIntegrator", "phases", "switched_states"]
 
 # (phase, y0, times, T_c) -> states: `phase` a step case of one phase's network (`Case.phase`),
 # y0 (n_b, 2n) the initial states [delta (rad), omega (rad/s)] at time 0 of n_b trajectories,
@@ -24,6 +25,13 @@ __all__ = ["PhaseIntegrator", "switched_states"]
 # every machine at P = p_m. T_c (n_b,) s: the clearing times the trajectories are for, to name in
 # a SolveError.
 PhaseIntegrator = Callable[[Case, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+@functools.lru_cache(maxsize=32)
+def phases(case: Case) -> tuple[Case, Case]:
+    """`case.phase("on")` and `case.phase("post")` of a fault case, built once (a phase validates
+    every field again: ~0.6 ms on ieee39, measured, against a cached look-up's hash of the case)."""
+    return case.phase("on"), case.phase("post")
 
 
 def switched_states(integrate: PhaseIntegrator, case: Case, t: np.ndarray, T_c: np.ndarray,
@@ -38,13 +46,13 @@ def switched_states(integrate: PhaseIntegrator, case: Case, t: np.ndarray, T_c: 
     n_c = clearing.size
     on_times = np.union1d(times[times < clearing[-1]], clearing)
     y0 = np.array(case.delta0 + case.omega0)[None]
-    on = integrate(case.phase("on"), y0, on_times, clearing)[0]  # (n_on, 2n)
+    on_phase, post = phases(case)
+    on = integrate(on_phase, y0, on_times, clearing)[0]  # (n_on, 2n)
     before = times[None, :] < clearing[:, None]  # (n_c, n_t): in the fault-on phase
     states = np.empty((n_c, times.size, y0.shape[1]))
     rows, cols = np.nonzero(before)
     states[rows, cols] = on[np.searchsorted(on_times, times[cols])]
     at_clearing = on[np.searchsorted(on_times, clearing)]  # (n_c, 2n)
-    post = case.phase("post")
     if stacked:
         rows, cols = np.nonzero(~before)
         since, back = np.unique(times[cols] - clearing[rows], return_inverse=True)
