@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # annotations only: the registry itself imports nothing but t
     from systems.cases import Case
 
 __all__ = ["ENTRY_POINT_GROUP", "INTERFACE", "LITERATURE_BASELINE", "SOLVERS", "UNAVAILABLE", "SolverUnavailable", "available_solvers",
-           "make_solver", "plugin_distribution", "solver_class"]
+           "fault_adapters", "make_solver", "plugin_distribution", "solver_class"]
 
 ENTRY_POINT_GROUP = "swingbench.solvers"
 _PROJECT = "swingbench"
@@ -191,9 +191,19 @@ def available_solvers() -> list[str]:
     return [name for name, cls in SOLVERS.items() if cls is not None]
 
 
+def fault_adapters() -> list[str]:
+    """Names of the installed adapters that integrate fault cases (`AbstractSolver.handles_faults`),
+    in registry order. Imports every adapter's module (seconds with torch and JAX)."""
+    return [name for name, cls in SOLVERS.items() if cls is not None and cls.handles_faults]
+
+
 def make_solver(name: str, case: Case, config: str = "default", **options: Any) -> AbstractSolver:
-    """Instantiate the adapter `name` for `case` with a named `config` and option overrides."""
+    """Instantiate the adapter `name` for `case` with a named `config` and option overrides. An
+    adapter without `handles_faults` refuses a fault case (ValueError naming those that do)."""
     cls = solver_class(name)
     if cls is None:
         raise SolverUnavailable(f"{name}: {UNAVAILABLE[name]}")
+    if case.fault is not None and not cls.handles_faults:
+        raise ValueError(f"{name} does not integrate fault cases (case {case.name!r} switches its network at the "
+                         f"clearing time); adapters that do: {', '.join(fault_adapters()) or 'none'}")
     return cls(case, config=config, **options)

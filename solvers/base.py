@@ -253,7 +253,7 @@ class AbstractSolver(abc.ABC):
             )
         if case.fault is not None and not self.handles_faults:
             raise ValueError(f"{self.name} does not integrate fault cases (case {case.name!r} switches its network "
-                             "at the clearing time); adapters that do: those with handles_faults")
+                             "at the clearing time); adapters that do: those with handles_faults (solvers.fault_adapters())")
         self.case = case
         self.config = config
         self.options: dict[str, Any] = {**self.OPTIONS, **self.CONFIGS[config], **options}
@@ -281,7 +281,8 @@ class AbstractSolver(abc.ABC):
 
     def solve(self, t_query, P1, extrapolate: bool = False) -> Trajectory:
         """delta (rad) and omega (rad/s) of every machine at times `t_query` (1-D, s, >= 0, any
-        order) for each P1 (float or 1-D, p.u., generator 1's mechanical power); arrays of shape
+        order) for each P1 (float or 1-D, the scenario parameter, `Case.scenario`: generator 1's
+        mechanical power, p.u.; a fault case's clearing time t_c, s, >= 0); arrays of shape
         (len(P1), len(t_query), n), float64.
 
         Small float64 arrays and Python floats take a fast path (checked in pure Python: the whole
@@ -313,6 +314,8 @@ class AbstractSolver(abc.ABC):
             if p1 is None:
                 p1 = check_array("P1", P1, promote=True)
                 p_lo, p_hi = float(p1.min()), float(p1.max())
+        if p_lo < 0.0 and self.case.fault is not None:
+            raise ValueError(f"P1: a clearing time t_c must be >= 0 s, got {p_lo!r}")
         if self.bounded_domain and not extrapolate:
             self._check_domain(t_hi, p_lo, p_hi)
         delta, omega = self._solve(t, p1)
@@ -344,6 +347,8 @@ class AbstractSolver(abc.ABC):
         p1 = check_array("P1", P1)
         if t.size != p1.size:
             raise ValueError(f"t_query has {t.size} entries, P1 has {p1.size}: solve_points needs pairs")
+        if self.case.fault is not None and p1.min() < 0.0:
+            raise ValueError(f"P1: a clearing time t_c must be >= 0 s, got {float(p1.min())!r}")
         if self.bounded_domain and not extrapolate:
             self._check_domain(float(t.max()), float(p1.min()), float(p1.max()))
         delta, omega = self._solve_points(t, p1)
@@ -364,6 +369,8 @@ class AbstractSolver(abc.ABC):
         if not isinstance(obs, Observations):
             raise ValueError(f"obs must be systems.cases.Observations, got {type(obs).__name__}")  # noqa: TRY004
         obs.check_machines(self.case)
+        if self.case.fault is not None:
+            raise ValueError(f"{self.name}: identification on a fault case is not supported (case {self.case.name!r})")
         start = time.perf_counter()
         # too little data is an outcome (success False), not a programming error; fewer samples than
         # unknowns leave nothing to fit, more are fitted and the estimate kept, though not trusted

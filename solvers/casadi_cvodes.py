@@ -21,6 +21,7 @@ from solvers.classical import (
     search_boxes,
     which_p1,
 )
+from solvers.fault_phases import switched_states
 from solvers.options import PositiveInt
 from systems.cases import Case, Observations
 from systems.model import accelerations, coupling
@@ -87,6 +88,10 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
     CVODES forward sensitivities for d x / d(m_1..n, d_1..n)); method ("bdf", the default, or
     "adams"), newton ("direct": Newton iterations with the Jacobian; "functional": fixed-point
     iterations), graph ("sx", "mx" or "auto", the default: see `MX_FROM_MACHINES`).
+    A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query
+    (output at the times before the largest t_c and at every t_c), then every post-fault phase
+    from its state at t_c, mapped over the t_c at the union of their times since t_c
+    (`solvers.fault_phases`); each phase's integrator is cached per output grid as above.
     """
 
     name: ClassVar[str] = "casadi-cvodes"
@@ -96,6 +101,7 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {**TOLERANCE_MARKS, "adams": frozenset({LARGE_SYSTEMS})}
     has_tolerance = True
     takes_threads = True
+    handles_faults = True
     QUERY_OPTIONS = frozenset({"threads"})
 
     def _make_caches(self) -> None:
@@ -104,14 +110,16 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
 
     def _fit(self) -> None:
         self._make_caches()
-        t = np.linspace(0.0, self.case.t_final, 201)
-        self._integrators(tuple(t), 100)
+        if self.case.fault is None:
+            t = np.linspace(0.0, self.case.t_final, 201)
+            self._integrators(tuple(t), 100)
 
-    def _integrator(self, times: tuple[float, ...]):
+    def _integrator(self, times: tuple[float, ...], case: Case | None = None):
+        """CVODES on `case` (default the adapter's; a fault case's phase) with output at `times` (s)."""
         o = self.options
         opts = {"reltol": o["rtol"], "abstol": o["atol"], "max_num_steps": 100000,
                 "linear_multistep_method": o["method"], **NEWTON_SCHEMES[o["newton"]]}
-        return ca.integrator("cvodes", "cvodes", swing_dae(self.case, self.graph), 0.0, list(times), opts)
+        return ca.integrator("cvodes", "cvodes", swing_dae(case or self.case, self.graph), 0.0, list(times), opts)
 
     @property
     def graph(self) -> Literal["sx", "mx"]:
@@ -121,15 +129,16 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
             return "mx" if self.case.n >= MX_FROM_MACHINES else "sx"
         return graph
 
-    def _build(self, times: tuple[float, ...], n_p1: int):
-        return self._integrator(times).map(n_p1, "thread", self.options["threads"])
+    def _build(self, times: tuple[float, ...], n_p1: int, case: Case | None = None):
+        return self._integrator(times, case).map(n_p1, "thread", self.options["threads"])
 
     def _run(self, fn, P1: np.ndarray, *args) -> list[np.ndarray]:
         try:
             return [np.asarray(out) for out in fn(*args)]
         except RuntimeError as exc:
             reason = str(exc).strip().splitlines()[-1]
-            raise SolveError(f"{self.name}: CVODES failed at {which_p1(P1)}: {reason}") from exc
+            raise SolveError(f"{self.name}: CVODES failed at {which_p1(P1, self.case.scenario.symbol)}: "
+                             f"{reason}") from exc
 
     def _x0(self, n_p: int) -> np.ndarray:
         """Initial states (2n, n_p), one column per trajectory."""
@@ -146,10 +155,21 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
         # map concatenates the trajectories' (2n, n_t) outputs horizontally: column k * n_t + j
         return xf.reshape(2 * n, n_p, times.size).transpose(1, 2, 0)
 
+    def _phase(self, phase: Case, y0: np.ndarray, times: np.ndarray, T_c: np.ndarray) -> np.ndarray:
+        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        n_b, n = y0.shape[0], phase.n
+        fn = self._integrators(tuple(times), n_b, phase)
+        params = np.repeat(np.concatenate([phase.p_m, phase.m, phase.d])[:, None], n_b, axis=1)
+        (xf,) = self._run(lambda x0, p: [fn(x0=x0, p=p)["xf"]], T_c, y0.T, params)
+        return xf.reshape(2 * n, n_b, times.size).transpose(1, 2, 0)
+
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         case = self.case
-        m, d = np.asarray(case.m), np.asarray(case.d)
-        y = at_query_times(lambda times: run_batch(lambda p1: self._states(times, p1, m, d), P1), t)
+        if case.fault is not None:
+            y = switched_states(self._phase, case, t, P1, stacked=True)
+        else:
+            m, d = np.asarray(case.m), np.asarray(case.d)
+            y = at_query_times(lambda times: run_batch(lambda p1: self._states(times, p1, m, d), P1), t)
         return y[..., :case.n], y[..., case.n:]
 
     def _build_identifier(self, times: tuple[float, ...], n_p1: int):

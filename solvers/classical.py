@@ -81,10 +81,11 @@ TOLERANCE_CONFIGS = {
 TOLERANCE_MARKS = {"tight": frozenset({IDENTIFIES_NETWORKS, SWEEP_POINT})}
 
 
-def which_p1(P1: np.ndarray) -> str:
-    """The trajectories a failed integration of the batch `P1` (p.u.) was for, for its error:
-    "P1=0.13" for one, "one of P1 in [0.08, 0.18]" for several."""
-    return f"P1={P1[0]:g}" if P1.size == 1 else f"one of P1 in [{P1.min():g}, {P1.max():g}]"
+def which_p1(P1: np.ndarray, symbol: str = "P1") -> str:
+    """The trajectories a failed integration of the batch `P1` (the scenario parameter, named
+    `symbol`: `Case.scenario`) was for, for its error: "P1=0.13" for one, "one of P1 in
+    [0.08, 0.18]" for several."""
+    return f"{symbol}={P1[0]:g}" if P1.size == 1 else f"one of {symbol} in [{P1.min():g}, {P1.max():g}]"
 
 
 def at_query_times(run: Callable[[np.ndarray], np.ndarray], t: np.ndarray) -> np.ndarray:

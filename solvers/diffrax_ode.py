@@ -25,6 +25,7 @@ from solvers.classical import (
     points_by_p1,
     search_boxes,
 )
+from solvers.diffrax_faults import switched
 from solvers.options import PositiveFloat, PositiveInt
 from solvers.threads import configure_threads
 from systems.cases import Case, Observations
@@ -96,6 +97,25 @@ def _vector_field(structure: Structure):
     return field
 
 
+def phase_solver(structure: Structure, method: str, adaptive: bool, max_steps: int):
+    """solve(y0, m, d, rtol, atol, dt, t, P) -> (ys (n_t, 2n, ...), ok): the system of `structure`
+    (its coupling; the initial state is y0, (2n, ...) like P's trailing axes) from time 0 to t[-1],
+    saved at t (sorted, s), P (n, ...) p.u.: one trajectory, or (n, n_p) stacked. Traceable."""
+    term = diffrax.ODETerm(_vector_field(structure))
+    solver = METHODS[method]()
+
+    def solve(y0, m, d, rtol, atol, dt, t, P):
+        control = diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
+        sol = diffrax.diffeqsolve(
+            term, solver, 0.0, t[-1], None if adaptive else dt, y0, args=(P, m, d),
+            saveat=diffrax.SaveAt(ts=t), stepsize_controller=control, max_steps=max_steps,
+            adjoint=diffrax.ForwardMode(), throw=False,
+        )
+        return sol.ys, sol.result == diffrax.RESULTS.successful
+
+    return solve
+
+
 @functools.lru_cache(maxsize=16)
 def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max_steps: int):
     """Jitted (values, sensitivities) for one system and solver. Tolerances, step, m, d and p_m are
@@ -110,19 +130,12 @@ def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max
     Mechanical powers as `Case.powers`: generator 1 (index 0) gets P1, the others p_m.
     """
     n = structure.n
-    term = diffrax.ODETerm(_vector_field(structure))
-    solver = METHODS[method]()
+    solve_from = phase_solver(structure, method, adaptive, max_steps)
     y0_one = np.array(structure.y0)
 
     def solve(m, d, rtol, atol, dt, t, P):  # P (n, ...): one trajectory, or (n, n_p) stacked
         y0 = jnp.broadcast_to(y0_one.reshape((2 * n,) + (1,) * (P.ndim - 1)), (2 * n,) + P.shape[1:])
-        control = diffrax.PIDController(rtol=rtol, atol=atol) if adaptive else diffrax.ConstantStepSize()
-        sol = diffrax.diffeqsolve(
-            term, solver, 0.0, t[-1], None if adaptive else dt, y0, args=(P, m, d),
-            saveat=diffrax.SaveAt(ts=t), stepsize_controller=control, max_steps=max_steps,
-            adjoint=diffrax.ForwardMode(), throw=False,
-        )
-        return sol.ys, sol.result == diffrax.RESULTS.successful  # ys (n_t, 2n, ...)
+        return solve_from(y0, m, d, rtol, atol, dt, t, P)  # ys (n_t, 2n, ...)
 
     def powers_of(P1, p_m):  # (n, n_p): row 0 is P1, row k the constant p_m[k] (Case.powers, machines first)
         return jnp.concatenate([P1[None, :], jnp.broadcast_to(p_m[1:, None], (n - 1, P1.size))])
@@ -152,6 +165,15 @@ def _compiled(structure: Structure, method: str, batch: str, adaptive: bool, max
         return y, ok & jnp.all(jnp.isfinite(y), axis=(1, 2))
 
     return jax.jit(values), jax.jit(sensitivities), jax.jit(points)
+
+
+@functools.lru_cache(maxsize=16)
+def _compiled_fault(on: Structure, post: Structure, method: str, adaptive: bool, max_steps: int):
+    """Jitted values(m, d, p_m, rtol, atol, dt, t (n_t,) sorted, T_c (n_c,)) -> (y (n_c, n_t, 2n),
+    ok (n_c,)) of a fault case, `on` and `post` its phases' structures (`diffrax_faults.switched`):
+    the signature of `_compiled`'s values, the clearing times in place of P1."""
+    return jax.jit(switched(np.array(on.y0), phase_solver(on, method, adaptive, max_steps),
+                            phase_solver(post, method, adaptive, max_steps)))
 
 
 Method = Literal[tuple(METHODS)]  # one of the keys of METHODS
@@ -196,6 +218,9 @@ class DiffraxODE(AbstractSolver):
     `identify` estimates every machine's m and d, differentiating through the solver (jax.jacfwd
     over the 2n parameters, diffrax.ForwardMode()) for the Jacobian of the least squares, compiled
     once per padded observation layout.
+    A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query,
+    then each post-fault phase from its state at t_c with its own steps, in one compiled call
+    whatever `batch` (`solvers.diffrax_faults`); solve_points one call per distinct t_c.
     """
 
     name: ClassVar[str] = "diffrax"
@@ -205,6 +230,7 @@ class DiffraxODE(AbstractSolver):
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     takes_threads = True
+    handles_faults = True
     QUERY_OPTIONS = frozenset({"threads"})  # its `batch` changes identification's error control: not here
     FIT_SHAPES: ClassVar[tuple[tuple[int, int], ...]] = (
         (201, 100), (201, 1), (201, 10), (201, 1000), (201, 10000), (1, 1),
@@ -241,8 +267,12 @@ class DiffraxODE(AbstractSolver):
 
     def _fit(self) -> FitReport:
         note = configure_threads(self.options["threads"])
-        self._values, _, self._points = self._functions(Structure.of(self.case))
-        case = self.case
+        case, o = self.case, self.options
+        if case.fault is None:
+            self._values, _, self._points = self._functions(Structure.of(case))
+        else:
+            self._values = _compiled_fault(Structure.of(case.phase("on")), Structure.of(case.phase("post")),
+                                           o["method"], o["dt"] is None, int(o["max_steps"]))
         with jax.enable_x64(True):  # device arrays once: converting them cost ~20 us of every query
             self._fixed = tuple(jnp.asarray(x, jnp.float64)
                                 for x in (case.m, case.d, case.p_m, *self._controls()))
@@ -256,7 +286,7 @@ class DiffraxODE(AbstractSolver):
                 # padded as `_run` pads a query of this size, so that the query finds this compilation
                 y, _ = self._values(*self._fixed, _pad(t, bucket(n_t)), np.full(bucket(n_p), p1))
                 y.block_until_ready()
-        for n_s in self.FIT_POINTS:  # as many distinct P1 as pairs, one time each: t = 0, nothing to integrate
+        for n_s in self.FIT_POINTS if case.fault is None else ():  # as many distinct P1 as pairs, one time each
             if bucket(n_s) * 2 * case.n * 8 <= self.FIT_MAX_BYTES:
                 self._solve_points(np.zeros(n_s), np.linspace(case.p1_min, case.p1_max, n_s))
         return FitReport(seconds=0.0, message=note)
@@ -275,12 +305,13 @@ class DiffraxODE(AbstractSolver):
     def _fail(self, t_end: float, P1: np.ndarray, ok: np.ndarray) -> None:
         """Raise SolveError naming the first failed P1 (stacked: the first that fails alone on
         [0, t_end] s, the query's span)."""
-        if self.options["batch"] == "stacked" and P1.size > 1:
+        symbol = self.case.scenario.symbol
+        if self.options["batch"] == "stacked" and self.case.fault is None and P1.size > 1:
             for p1 in P1:
                 self._run(np.array([t_end]), np.array([p1]))  # raises for a P1 that fails on its own
             where = f"one of P1 in [{P1.min():g}, {P1.max():g}] (the stacked solve)"
         else:
-            where = f"P1={P1[np.argmin(ok)]:g}"
+            where = f"{symbol}={P1[np.argmin(ok)]:g}"
         raise SolveError(f"{self.name}: integration failed at {where}: max_steps="
                          f"{self.options['max_steps']} reached or the state is not finite")
 
@@ -298,6 +329,8 @@ class DiffraxODE(AbstractSolver):
         of its pairs, its times and the number of distinct P1 padded to `bucket` sizes; one call per
         distinct P1 (`points_by_p1`) when that padded output would exceed `POINTS_MAX_BYTES`."""
         groups, n = PointGroups.of(t, P1), self.case.n
+        if self.case.fault is not None:
+            return points_by_p1(self._solve, t, P1, n)
         rows, width = bucket(groups.P1.size), bucket(int(np.diff(groups.starts).max()))
         if rows * width * 2 * n * 8 > self.POINTS_MAX_BYTES:
             return points_by_p1(self._solve, t, P1, n)

@@ -17,12 +17,13 @@ import time
 __all__ = ["PREPARED_KERNELS", "main"]
 
 # numba-rk's kernels that `main` compiles beyond the SMIB's, as (case, method, parallel,
-# sensitivities): those the tests compile (wscc9: n = 3, ieee39: n = 10), so that `make test` in a
+# sensitivities): those the tests compile (wscc9 and its fault case: n = 3, ieee39: n = 10), so that `make test` in a
 # fresh clone loads them from the cache instead of compiling them inside its 3-minute budget.
 PREPARED_KERNELS = (
     *(("wscc9", method, False, True) for method in ("rk4", "dopri5", "dop853")),
     ("wscc9", "dop853", True, False),
     ("ieee39", "rk4", False, False),
+    ("wscc9-bus8-line8-9", "dop853", False, False),  # a fault case: `solvers.numba_faults`' kernel
 )
 
 
@@ -56,7 +57,7 @@ def main() -> int:
         return 0
     import numpy as np
 
-    from solvers import numba_kernels, trapezoid_kernels
+    from solvers import numba_kernels, trapezoid_faults, trapezoid_kernels
     from solvers.numba_points import points_kernel
     from systems.cases import SMIB_INFERENCE
 
@@ -75,6 +76,9 @@ def main() -> int:
     for parallel in (False, True):  # trapezoid's kernel, one for solve and solve_points: two P1, two times
         trapezoid_kernels.run_kernel(parallel)(np.array([0.0, 0.1]), np.array([0, 1, 0, 1]), np.array([0, 2, 4]),
                                                np.full(2, 0.1), system, np.array([0.05, 1e-10, 20.0]), False)
+        # its fault cases' kernel (every n), the SMIB's system as both phases
+        trapezoid_faults.fault_kernel(parallel)(np.array([0.0, 0.1]), np.array([0, 1, 0, 1]), np.array([0, 2, 4]),
+                                                np.full(2, 0.05), system, system, np.array([0.05, 1e-10, 20.0]), False)
     try:
         from solvers.pinn.architecture import Architecture
         from solvers.pinn.compiled import NumbaEvaluator

@@ -23,6 +23,7 @@ from solvers.classical import (
     keeps_network_sparse,
     search_boxes,
 )
+from solvers.numba_faults import fault_kernel
 from solvers.numba_points import points_kernel
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
@@ -70,11 +71,14 @@ class NumbaRK(AbstractSolver):
     The right-hand side is the case's n-machine swing equation (`systems.model`), its network
     Kron-reduced (dense coupling, ~4 n^2 multiply-adds) or kept sparse (`systems.sparse_network`:
     two sparse triangular solves); P1 is generator 1's mechanical power, the other machines run
-    at their p_m.
+    at their p_m. A fault case (`Case.fault`, P1 the clearing time t_c s) integrates the fault-on
+    phase once for every t_c of a call and each post-fault phase from its own state at t_c
+    (`solvers.numba_faults`), on the reduced networks.
     """
 
     name: ClassVar[str] = "numba-rk"
     compiled: ClassVar[bool] = True
+    handles_faults: ClassVar[bool] = True
     SCHEMA = NumbaRKOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {**TOLERANCE_CONFIGS, "rk4": {"method": "rk4"}}
     CONFIG_MARKS = TOLERANCE_MARKS
@@ -106,6 +110,9 @@ class NumbaRK(AbstractSolver):
         (`_reduced`) whatever the option."""
         options, n = self.options, self.case.n
         method = kernels.METHODS[options["method"]]
+        if self.case.fault is not None:
+            self._prepare_fault(method)
+            return
         if not hasattr(self, "_system"):
             sparse = keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
             self._system = kernels.system_array(self.case, sparse)
@@ -122,6 +129,20 @@ class NumbaRK(AbstractSolver):
             self._reduced = self._system if self._net is kernels.NO_NETWORK else kernels.system_array(self.case)
             self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
             self._warm(self._sensitivities, self._reduced, kernels.NO_NETWORK)
+
+    def _prepare_fault(self, method: int) -> None:
+        """A fault case's packed systems (each phase's), options and compiled kernel (warmed on a
+        grid and on points of two clearing times)."""
+        if hasattr(self, "_system"):
+            return
+        case, options = self.case, self.options
+        self._system, self._post = kernels.system_array(case.phase("on")), kernels.system_array(case.phase("post"))
+        self._net = kernels.NO_NETWORK
+        self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]], np.float64)
+        self._fault = fault_kernel(method, options["parallel"], case.n)
+        t, t_c = np.array([0.0, 0.1, 0.05]), np.array([0.05, 0.02, 0.0])
+        self._solve(t, t_c)
+        self._solve_points(t, t_c)
 
     def _warm(self, run, system: np.ndarray, net: LUFactors) -> None:
         run(np.array([0.0, 0.1]), np.full(2, self.case.p1_min), system, net, self._options)
@@ -142,10 +163,30 @@ class NumbaRK(AbstractSolver):
             numba.set_num_threads(self.options["threads"])
         states, failed, status = run(t, P1, system, net, options)
         if failed >= 0:
-            raise SolveError(f"{self.name}: integration failed at P1={P1[failed]:g}: {_FAILURES[status]}")
+            self._failed(P1[failed], status)
+        return states
+
+    def _failed(self, p1: float, status: int) -> None:
+        """Raise the SolveError of a trajectory of scenario parameter `p1` (P1 p.u. or t_c s)."""
+        raise SolveError(f"{self.name}: integration failed at {self.case.scenario.symbol}={p1:g}: {_FAILURES[status]}")
+
+    def _switched(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, T_c: np.ndarray,
+                  shared: bool) -> np.ndarray:
+        """States (2, len(T_c) or 1 with `shared`, len(t), n) of a fault case from the kernel of
+        `numba_faults.fault_kernel` (its groups), or SolveError naming t_c."""
+        if self.options["parallel"]:
+            numba.set_num_threads(self.options["threads"])
+        states, failed, status = self._fault(t, order, starts, T_c, self._system, self._post, self._net,
+                                             self._options, shared)
+        if failed >= 0:
+            self._failed(T_c[failed], status)
         return states
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.case.fault is not None:
+            order = np.argsort(t, kind="stable")
+            states = self._switched(t, np.tile(order, P1.size), np.arange(P1.size + 1) * t.size, P1, False)
+            return states[0], states[1]
         run = self._serial if P1.size == 1 else self._batch
         states = self._run(run, t, P1, self._system, self._net, self._options)
         return states[0], states[1]
@@ -155,12 +196,15 @@ class NumbaRK(AbstractSolver):
         compiled call (`numba_points.points_kernel`), one trajectory per distinct P1 integrated to
         the last time of its pairs (a P1 of one pair: to that pair's t, as a one-point `solve`)."""
         groups = PointGroups.of(t, P1)
+        if self.case.fault is not None:
+            states = self._switched(t, groups.order, groups.starts, groups.P1, True)
+            return states[0, 0], states[1, 0]
         if self.options["parallel"]:
             numba.set_num_threads(self.options["threads"])
         states, failed, status = self._points(t, groups.order, groups.starts, groups.P1, self._system,
                                               self._net, self._options)
         if failed >= 0:
-            raise SolveError(f"{self.name}: integration failed at P1={groups.P1[failed]:g}: {_FAILURES[status]}")
+            self._failed(groups.P1[failed], status)
         return states[0], states[1]
 
     def _identify(self, obs: Observations) -> Estimate:

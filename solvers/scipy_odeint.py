@@ -18,6 +18,7 @@ from solvers.classical import (
     run_batch,
     which_p1,
 )
+from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 
@@ -40,13 +41,16 @@ class ScipyOdeint(PointsByP1, AbstractSolver):
     side calls per Jacobian, linear cost in the batch) instead of a dense one (2n * len(P1) calls and
     a cubic factorisation: 12 minutes and 4 GB for 1000 trajectories of ieee39, measured).
     Options: rtol, atol (defaults 1e-3, 1e-6, ode45's); m_bounds, d_bounds (p.u.), the search box
-    of `identify`."""
+    of `identify`. A fault case (P1 the clearing time t_c s): the fault-on phase once for every
+    t_c of a query (LSODA's output at the times before the largest t_c and at every t_c), then
+    every post-fault phase in one stacked system from its state at t_c (`solvers.fault_phases`)."""
 
     name: ClassVar[str] = "scipy-odeint"
     SCHEMA = ToleranceOptions
     CONFIGS = TOLERANCE_CONFIGS
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
+    handles_faults = True
     # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
     # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,
     # the 100 x 201 grid, rtol 1e-3: 97-216 ms on 2 BLAS threads, 20-32 ms on 1; at 1e-10, 12.7 ms
@@ -56,28 +60,42 @@ class ScipyOdeint(PointsByP1, AbstractSolver):
     def _fit(self) -> None:
         pass
 
-    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
-        n = case.n
-        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(P1))
-        y0 = np.tile(np.array(case.delta0 + case.omega0), P1.size)
+    def _states(self, case: Case, y0: np.ndarray, P: np.ndarray, t: np.ndarray, failed: str) -> np.ndarray:
+        """States (n_b, len(t), 2n) at sorted unique times t >= 0 (s) of the trajectories from y0
+        (n_b, 2n) at time 0 with powers P (n_b, n) p.u., in one stacked system; `failed` names
+        them in a SolveError."""
+        n, n_b = case.n, y0.shape[0]
+        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), P)
         grid = t if t[0] == 0.0 else np.concatenate([[0.0], t])  # odeint starts at its first time
         if t[-1] == 0.0:
-            y = np.repeat(y0[None], t.size, axis=0)
+            y = np.repeat(y0.reshape(1, -1), t.size, axis=0)
         else:
             y, info = odeint(
-                _rhs, y0, grid, args=args, rtol=self.options["rtol"], atol=self.options["atol"],
+                _rhs, y0.ravel(), grid, args=args, rtol=self.options["rtol"], atol=self.options["atol"],
                 tfirst=True, full_output=True, mxstep=100000, ml=2 * n - 1, mu=2 * n - 1,
             )
             if info["message"] != "Integration successful.":
-                raise SolveError(f"{self.name}: integration failed at {which_p1(P1)}: {info['message']}")
+                raise SolveError(f"{self.name}: integration failed at {failed}: {info['message']}")
             y = y[grid.size - t.size:]  # drop the prepended t = 0
-        y = y.reshape(t.size, P1.size, 2 * n).transpose(1, 0, 2)  # (n_p, n_t, 2n)
-        return y[..., :n], y[..., n:]
+        return y.reshape(t.size, n_b, 2 * n).transpose(1, 0, 2)
+
+    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
+        y0 = np.tile(np.array(case.delta0 + case.omega0), (P1.size, 1))
+        y = self._states(case, y0, case.powers(P1), t, which_p1(P1))
+        return y[..., :case.n], y[..., case.n:]
+
+    def _phase(self, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
+        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
+        return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        y = at_query_times(lambda times: np.concatenate(
-            run_batch(lambda p1: self._integrate(self.case, times, p1), P1), axis=-1), t)
+        if self.case.fault is not None:
+            y = switched_states(self._phase, self.case, t, P1, stacked=True)
+        else:
+            y = at_query_times(lambda times: np.concatenate(
+                run_batch(lambda p1: self._integrate(self.case, times, p1), P1), axis=-1), t)
         n = self.case.n
         return y[..., :n], y[..., n:]
 

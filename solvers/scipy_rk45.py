@@ -17,6 +17,7 @@ from solvers.classical import (
     identify_by_simulation,
     which_p1,
 )
+from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations, coupling
 
@@ -30,15 +31,14 @@ def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: 
     return np.concatenate([state[n:], acc.T]).ravel()
 
 
-def stacked_states(integrate, case: Case, t: np.ndarray, P1: np.ndarray, y0: np.ndarray,
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """(delta, omega), each (len(P1), len(t), n), from `integrate(y0 (2n * n_p,), args)` -> states
-    (2n * n_p, len(t)) of the stacked system of `_rhs` (rows [delta; omega] x P1)."""
-    n = case.n
-    args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(P1))
-    y = integrate(np.repeat(y0[:, None], P1.size, axis=1).ravel(), args).reshape(2 * n, P1.size, t.size)
-    y = y.transpose(1, 2, 0)  # (n_p, n_t, 2n)
-    return y[..., :n], y[..., n:]
+def stacked_states(integrate, case: Case, t: np.ndarray, P: np.ndarray, y0: np.ndarray) -> np.ndarray:
+    """States (n_b, len(t), 2n) from `integrate(y (2n * n_b,), args)` -> states (2n * n_b, len(t))
+    of the stacked system of `_rhs` (rows [delta; omega] x trajectory): P (n_b, n) p.u. and y0
+    (n_b, 2n) each trajectory's powers and initial state."""
+    n, n_b = case.n, P.shape[0]
+    args = (coupling(case), np.asarray(case.m), np.asarray(case.d), P)
+    y = integrate(np.ascontiguousarray(y0.T).ravel(), args).reshape(2 * n, n_b, t.size)
+    return y.transpose(1, 2, 0)
 
 
 class RK45Options(ToleranceOptions):
@@ -52,6 +52,9 @@ class ScipyRK45(PointsByP1, AbstractSolver):
     batch: "loop" (one `solve_ivp` per P1, the default) or "stacked" (one system of 2 * len(P1)
     states; the step size then follows the hardest trajectory); m_bounds, d_bounds (p.u.): the
     search box of `identify`, which simulates every P1 in one stacked system whatever `batch`.
+    A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query,
+    with dense output, then each post-fault phase from its state at t_c, looped or stacked as
+    `batch` says (`solvers.fault_phases`).
     """
 
     name: ClassVar[str] = "scipy-rk45"
@@ -60,16 +63,17 @@ class ScipyRK45(PointsByP1, AbstractSolver):
     CONFIGS = TOLERANCE_CONFIGS
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
+    handles_faults = True
     VARIANTS = ({"batch": "stacked"},)
     QUERY_OPTIONS = frozenset({"batch"})  # `identify` simulates stacked in either mode
 
     def _fit(self) -> None:
         pass
 
-    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t, all P1 in one
-        stacked system."""
-        y0 = np.array(case.delta0 + case.omega0)
+    def _states(self, case: Case, y0: np.ndarray, P: np.ndarray, t: np.ndarray, failed: str) -> np.ndarray:
+        """States (n_b, len(t), 2n) at sorted unique times t (s) of the trajectories from y0 (n_b,
+        2n) at time 0 with powers P (n_b, n) p.u., all in one stacked system; `failed` names them
+        in a SolveError."""
 
         def integrate(y0_all: np.ndarray, args: tuple) -> np.ndarray:
             if t[-1] == 0.0:
@@ -79,19 +83,36 @@ class ScipyRK45(PointsByP1, AbstractSolver):
                 rtol=self.options["rtol"], atol=self.options["atol"], args=args,
             )
             if not sol.success:
-                raise SolveError(f"{self.name}: integration failed at {which_p1(P1)}: {sol.message}")
+                raise SolveError(f"{self.name}: integration failed at {failed}: {sol.message}")
             return sol.y
 
-        return stacked_states(integrate, case, t, P1, y0)
+        return stacked_states(integrate, case, t, P, y0)
+
+    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t, all P1 in one
+        stacked system."""
+        y0 = np.tile(np.array(case.delta0 + case.omega0), (P1.size, 1))
+        y = self._states(case, y0, case.powers(P1), t, which_p1(P1))
+        return y[..., :case.n], y[..., case.n:]
+
+    def _phase(self, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
+        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
+        return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        def states(times: np.ndarray) -> np.ndarray:  # (n_p, n_t, 2n)
-            if self.options["batch"] == "stacked":
-                return np.concatenate(self._integrate(self.case, times, P1), axis=-1)
-            return np.concatenate([np.concatenate(self._integrate(self.case, times, P1[i:i + 1]), axis=-1)
-                                   for i in range(P1.size)])
+        stacked = self.options["batch"] == "stacked"
+        if self.case.fault is not None:
+            y = switched_states(self._phase, self.case, t, P1, stacked)
+        else:
+            def states(times: np.ndarray) -> np.ndarray:  # (n_p, n_t, 2n)
+                if stacked:
+                    return np.concatenate(self._integrate(self.case, times, P1), axis=-1)
+                return np.concatenate([np.concatenate(self._integrate(self.case, times, P1[i:i + 1]), axis=-1)
+                                       for i in range(P1.size)])
 
-        y, n = at_query_times(states, t), self.case.n
+            y = at_query_times(states, t)
+        n = self.case.n
         return y[..., :n], y[..., n:]
 
     def _identify(self, obs: Observations) -> Estimate:

@@ -14,6 +14,7 @@ from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, SolveError
 from solvers.classical import ObservationLayout, PointGroups, check_step, identify_least_squares, search_boxes
 from solvers.numba_kernels import NOT_FINITE, D, M, check_threads, system_array
 from solvers.options import Bounds, OptionSchema, PositiveFloat, PositiveInt, StrictBool
+from solvers.trapezoid_faults import fault_kernel
 from systems.cases import Observations
 
 __all__ = ["HALF_CYCLE", "STEPS", "TIGHT_STEP", "Trapezoid"]
@@ -58,10 +59,13 @@ class Trapezoid(AbstractSolver):
     `stats` (n_trajectories, 4): each trajectory's `trapezoid_kernels.STATS` in the last call.
     The network is the case's Kron-reduced one, dense: a factorisation costs ~n^3 / 3
     multiply-adds, an iteration ~5 n^2 (P_e 4 n^2, the triangular solves n^2), a step one more P_e.
+    A fault case (`Case.fault`, P1 the clearing time t_c s): the fault-on phase to t_c, ending on a
+    step, then the post-fault phase from the state at t_c (`solvers.trapezoid_faults`).
     """
 
     name: ClassVar[str] = "trapezoid"
     compiled: ClassVar[bool] = True
+    handles_faults: ClassVar[bool] = True
     SCHEMA = TrapezoidOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}, "tight": {"dt": TIGHT_STEP}}
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {"tight": frozenset({SWEEP_POINT})}
@@ -82,25 +86,36 @@ class Trapezoid(AbstractSolver):
 
     def _fit(self) -> None:
         """Packed system and options, and the compiled kernel (numba compiles, or loads from its
-        cache, on the first call: here, on times t = 0, which compile every path and step none)."""
-        options = self.options
-        self._system = system_array(self.case)
+        cache, on the first call: here, on times t = 0, which compile every path and step none; a
+        fault case's cleared at t_c = 0)."""
+        options, case = self.options, self.case
         self._options = np.array([options["dt"], options["newton_tol"], options["max_newton"]], np.float64)
-        self._kernel = kernels.run_kernel(options["parallel"])
         self.stats = np.zeros((0, len(kernels.STATS)))
-        self._solve(np.zeros(2), np.full(2, self.case.p1_min))
-        self._solve_points(np.zeros(2), np.full(2, self.case.p1_min))
+        if case.fault is None:
+            self._system = system_array(case)
+            self._kernel = kernels.run_kernel(options["parallel"])
+        else:
+            self._system, self._post = system_array(case.phase("on")), system_array(case.phase("post"))
+            self._fault = fault_kernel(options["parallel"])
+        scenario = np.full(2, case.p1_min if case.fault is None else 0.0)
+        self._solve(np.zeros(2), scenario)
+        self._solve_points(np.zeros(2), scenario)
 
     def _run(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, P1: np.ndarray, system: np.ndarray,
              options: np.ndarray, shared: bool) -> np.ndarray:
-        """The kernel's states (`trapezoid_kernels.run_kernel`), or SolveError naming P1 and the
-        time of the failed step; the per-trajectory `kernels.STATS` of the call in `self.stats`."""
+        """The kernel's states (`trapezoid_kernels.run_kernel`; a fault case's,
+        `trapezoid_faults.fault_kernel`, with P1 its clearing times and `system` the fault-on one),
+        or SolveError naming P1 (or t_c) and the time of the failed step; the per-trajectory
+        `kernels.STATS` of the call in `self.stats`."""
         if self.options["parallel"]:
             numba.set_num_threads(self.options["threads"])
-        states, self.stats, failed, status = self._kernel(t, order, starts, P1, system, options, shared)
+        if self.case.fault is None:
+            states, self.stats, failed, status = self._kernel(t, order, starts, P1, system, options, shared)
+        else:
+            states, self.stats, failed, status = self._fault(t, order, starts, P1, system, self._post, options, shared)
         if failed >= 0:
-            raise SolveError(f"{self.name}: integration failed at P1={P1[failed]:g}: {_FAILURES[status]} "
-                             f"(step from t={self.stats[failed, 3]:g} s)")
+            raise SolveError(f"{self.name}: integration failed at {self.case.scenario.symbol}={P1[failed]:g}: "
+                             f"{_FAILURES[status]} (step from t={self.stats[failed, 3]:g} s)")
         return states
 
     def _grid(self, t: np.ndarray, P1: np.ndarray, system: np.ndarray, options: np.ndarray) -> np.ndarray:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 import tomllib
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import ALL_SOLVERS, fit_for_tests, require, small_options
 
-from solvers import SOLVERS, make_solver
+from solvers import SOLVERS, fault_adapters, make_solver
 from solvers.base import NotFittedError, Trajectory
 from systems.cases import CASES, SMIB_INFERENCE, Observations
 from systems.reference import reference
@@ -187,3 +188,44 @@ def test_every_adapter_solves_a_multi_machine_case(wscc9, name):
         np.testing.assert_allclose(traj.delta, ref_delta, rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(traj.omega, ref_omega, rtol=1e-6, atol=1e-6)
         np.testing.assert_allclose(points.delta, [ref_delta[0, 0], ref_delta[1, 1]], rtol=1e-6, atol=1e-6)
+
+
+# Fault adapters whose fault solve this test does not run: diffrax compiles it for ~10 s a shape on
+# one core (measured), beyond the suite's budget; scripts/fault_grid.py checks it against the reference.
+FAULTS_COMPILE_SLOWLY = frozenset({"diffrax"})
+
+
+@pytest.fixture(scope="module")
+def wscc9_fault():
+    pytest.importorskip("pandapower")
+    return CASES["wscc9-bus8-line8-9"]
+
+
+@pytest.mark.parametrize("name", ALL_SOLVERS)
+def test_every_adapter_solves_a_fault_case_or_refuses_it(wscc9_fault, name):
+    """An adapter with `handles_faults` answers a fault case (the second argument the clearing time
+    t_c, s): a classical one at its tight tolerances as the reference, a PINN on a tiny budget
+    finite from the initial state; one without is refused by `make_solver`, naming the adapters
+    that do (`fault_adapters`), and by its class (tests/test_fault_solvers.py has the details)."""
+    require(name)
+    cls, case = SOLVERS[name], wscc9_fault
+    if not cls.handles_faults:
+        with pytest.raises(ValueError, match=f"^{name} does not integrate fault cases.*adapters that do: "
+                                             f"{re.escape(', '.join(fault_adapters()))}$"):
+            make_solver(name, case)
+        with pytest.raises(ValueError, match="handles_faults"):
+            cls(case)
+        return
+    if name in FAULTS_COMPILE_SLOWLY:
+        pytest.skip(f"{name}'s fault solve compiles too slowly for the suite (scripts/fault_grid.py checks it)")
+    solver = make_solver(name, case, **small_options(name)) if cls.trains else make_solver(name, case, "tight")
+    fit_for_tests(solver)
+    t, T_c = np.array([0.0, 0.1, 1.0, 2.5]), np.array([0.15, 0.1])
+    traj = solver.solve(t, T_c)
+    assert traj.delta.shape == traj.omega.shape == (2, 4, 3)
+    assert np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
+    np.testing.assert_allclose(traj.delta[:, 0], np.tile(case.delta0, (2, 1)), atol=1e-6)
+    if not cls.trains:
+        ref_delta, ref_omega = reference(case, t, T_c)
+        np.testing.assert_allclose(traj.delta, ref_delta, rtol=0, atol=1e-5)
+        np.testing.assert_allclose(traj.omega, ref_omega, rtol=0, atol=1e-4)
