@@ -17,9 +17,8 @@ from systems.model import rhs
 from systems.reference import reference
 from systems.stability import ANGLE_LIMIT, is_unstable, max_coi_angle, reference_cct, reference_unstable
 
-# Every fault case of wscc9 and kundur4, and two of ieee39's (the one with the shortest CCT, near the
-# range's lower end, among them).
-CHECKED = ("wscc9-bus8-line8-9", "kundur4-bus7-line7-8a", "ieee39-bus22-line21-22", "ieee39-bus29-line28-29")
+# Every fault case of wscc9 and kundur4, and ieee39's first (the one of its largest pre-fault flow).
+CHECKED = ("wscc9-bus8-line8-9", "kundur4-bus7-line7-8a", "ieee39-bus22-line21-22")
 EVERY = [name for names in FAULT_CASES.values() for name in names]
 
 
