@@ -8,9 +8,12 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import ClassVar
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from harness.cct_plot import cct_plot
+from harness.labels import Labels
 from harness.plan import plan
 from harness.runner import run_unit
 from harness.runs import QUICK, SolverSpec
@@ -24,7 +27,7 @@ from systems.cases import CASES, Case
 from systems.reference import reference
 from systems.stability import ANGLE_LIMIT, reference_cct
 
-CASE = "wscc9-bus8-line8-9"
+CASE = "kundur4-bus7-line7-8a"
 SHIFT_S = 2e-3  # the surrogate's CCT lies this much after the reference's
 SETTINGS = replace(QUICK, min_repeats=1, latency_budget_s=0.0, cache_dir=None)
 
@@ -82,7 +85,7 @@ def _fitted(cls: type[AbstractSolver], case: Case) -> AbstractSolver:
 def test_bisection_on_the_reference_finds_the_reference_cct_within_the_bracket():
     case = CASES[CASE]
     (row,) = cct(_fitted(ReferenceFaults, case), case, SETTINGS)
-    assert row["method"] == "bisection" and row["contingency"] == "bus8-line8-9"
+    assert row["method"] == "bisection" and row["contingency"] == "bus7-line7-8a"
     assert row["unstable_s"] - row["stable_s"] <= BRACKET_S * (1 + 1e-9)
     assert abs(row["cct_error_s"]) <= BRACKET_S
     assert row["solves"] == 10 and row["trajectories"] == 11  # the two ends together, then 9 halvings of 0.35 s
@@ -115,10 +118,10 @@ def test_a_range_without_the_cct_gives_no_cct_and_says_why():
     found = bisect(_fitted(ReferenceFaults, late))
     assert np.isnan(found.cct_s) and found.note == "unstable at p1_min = 0.3 s: the CCT lies below the range"
     assert (found.solves, found.trajectories) == (1, 2)
-    with pytest.raises(ValueError, match="'wscc9-bus8-line8-9': unstable at the shortest clearing time p1_min = 0.3 s"):
+    with pytest.raises(ValueError, match="'kundur4-bus7-line7-8a': unstable at the shortest clearing time p1_min = 0.3 s"):
         cct(_fitted(ReferenceFaults, late), late, SETTINGS)
-    with pytest.raises(ValueError, match="'wscc9' is no fault case: it has no CCT"):
-        cct(_fitted(ReferenceFaults, CASES["wscc9"]), CASES["wscc9"], SETTINGS)
+    with pytest.raises(ValueError, match="'kundur4' is no fault case: it has no CCT"):
+        cct(_fitted(ReferenceFaults, CASES["kundur4"]), CASES["kundur4"], SETTINGS)
 
 
 def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():
@@ -133,21 +136,21 @@ def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():
 def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(monkeypatch):
     """On a fault case: the adapters with handles_faults (scipy-rk45 has not: no unit); on a step
     case the suite is recorded as skipped. The units run, and the fault case's section of the report
-    has the CCT table: the surrogate's break-even N* is where its training and N* searches cost N*
-    searches of the classical adapter (never, when its search is not faster)."""
+    has the CCT table and figure: the surrogate's break-even N* is where its training and N* searches
+    cost N* searches of the classical adapter (never, when its search is not faster)."""
     monkeypatch.setitem(SOLVERS, ReferenceFaults.name, ReferenceFaults)
     monkeypatch.setitem(SOLVERS, ShiftedSurrogate.name, ShiftedSurrogate)
     specs = [SolverSpec(ReferenceFaults.name), SolverSpec(ShiftedSurrogate.name, seed=0), SolverSpec("scipy-rk45")]
-    fault, step = CASES[CASE], CASES["wscc9"]
+    fault, step = CASES[CASE], CASES["kundur4"]
     result = plan(specs, [fault, step], [SUITES["cct"]], SETTINGS)
     assert [(skip.case.name, skip.spec.solver, skip.reason) for skip in result.not_run] == [
         (CASE, "scipy-rk45", "skipped: scipy-rk45 does not integrate fault cases (no handles_faults)")]
     on_step = [unit for unit in result.units if unit.case == step]
     assert {unit.spec.solver for unit in on_step} == {ReferenceFaults.name, ShiftedSurrogate.name, "scipy-rk45"}
-    no_fault = "skipped: cct measures fault cases only, and wscc9 has no fault"
+    no_fault = "skipped: cct measures fault cases only, and kundur4 has no fault"
     assert {unit.skipped for unit in on_step} == {(("cct", no_fault),)}
     rows = [row for unit in result.units for _, part in run_unit(unit, SETTINGS, unit.works()) for row in part]
-    assert {row["status"] for row in rows if row["case"] == "wscc9"} == {no_fault}
+    assert {row["status"] for row in rows if row["case"] == "kundur4"} == {no_fault}
     (name, frames), _ = case_sections(suite_frames(rows))
     assert name == CASE
     _, table = build_tables(frames)["cct"]
@@ -155,6 +158,10 @@ def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(m
     by_method = frames["cct"].set_index("solver")
     classical_s, surrogate_s = by_method.loc[ReferenceFaults.name, "median_s"], by_method.loc[ShiftedSurrogate.name, "median_s"]
     fit_s = frames["fit"].set_index("solver").loc[ShiftedSurrogate.name, "fit_s"]
+    figure = cct_plot(frames, Labels(frames))
+    assert [ax.get_title() for ax in figure.axes][1:] == [
+        f"unstable side: t_c = {reference_cct(fault) + 0.02:.4g} s", f"reference CCT {reference_cct(fault):.4f} s"]
+    plt.close(figure)
     cell = table["break-even N* (CCT searches)"].iloc[1]
     if surrogate_s < classical_s:
         n_star = float(cell)

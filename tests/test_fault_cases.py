@@ -65,11 +65,11 @@ def test_the_reference_is_continuous_at_the_clearing_time_and_its_derivative_swi
 
 @pytest.mark.parametrize("name", CHECKED)
 def test_clearing_well_before_the_cct_is_stable_and_well_after_it_unstable(name):
-    """20 ms either side of the reference CCT, judged on the reference every 10 ms (not by the
-    bisection's terminal event): the early clearing keeps every machine well within pi of the
-    centre of inertia, the late one passes it and runs away."""
+    """20 ms either side of the reference CCT (to 10 ms), judged on the reference every 10 ms (not
+    by the bisection's terminal event): the early clearing keeps every machine well within pi of
+    the centre of inertia, the late one passes it and runs away."""
     case = CASES[name]
-    cct = reference_cct(case, tol=1e-3)
+    cct = reference_cct(case, tol=1e-2)
     delta = reference(case, np.linspace(0.0, case.t_final, 301), [cct - 0.02, cct + 0.02])[0]
     angles = max_coi_angle(case, delta)
     assert is_unstable(case, delta).tolist() == [False, True]
@@ -85,7 +85,7 @@ def test_every_registered_fault_cases_cct_lies_inside_its_clearing_times(name):
 
 
 def test_the_reference_cct_brackets_the_switch_from_stable_to_unstable():
-    case = CASES[CHECKED[0]]
+    case = CASES[CHECKED[1]]
     cct = reference_cct(case)
     assert not reference_unstable(case, cct - 1e-6) and reference_unstable(case, cct + 1e-6)
     assert abs(reference_cct(case, tol=1e-3) - cct) <= 1e-3

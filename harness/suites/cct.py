@@ -37,12 +37,18 @@ from harness.suites._base import Suite
 from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case
+from systems.model import relative_angles
+from systems.reference import reference
 from systems.stability import ANGLE_LIMIT, is_unstable, reference_cct
 
 __all__ = ["BRACKET_S", "CRITERION_DT_S", "Search", "bisect", "cct", "criterion_times", "grid_then_bisect"]
 
 BRACKET_S = 1e-3  # s: the width of the bracket every method narrows the CCT to
 CRITERION_DT_S = 0.01  # s: the spacing of the times the criterion is judged at
+# The clearing times of the trajectories a row keeps for the figure: this far (s) either side of the
+# reference CCT, within the case's range, every `TRAJECTORY_EVERY`-th time of `criterion_times`.
+TRAJECTORY_OFFSET_S = 0.02
+TRAJECTORY_EVERY = 2
 
 
 @dataclass(frozen=True)
@@ -127,11 +133,25 @@ def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
     return Search(lo, hi, 1 + evaluations, grid.size + evaluations)
 
 
+def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
+    """The figure's data (`harness.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
+    `TRAJECTORY_OFFSET_S` either side of the reference CCT `ref_cct` (s), clamped to the case's range;
+    `traj_t` (n_t,) s; `traj_pred` and `traj_ref` (2, n_t, n): the adapter's and the reference's
+    angles from the centre of inertia (rad), as lists. Not timed."""
+    case = solver.case
+    t_c = np.clip([ref_cct - TRAJECTORY_OFFSET_S, ref_cct + TRAJECTORY_OFFSET_S], case.p1_min, case.p1_max)
+    t = criterion_times(case)[::TRAJECTORY_EVERY]
+    pred = relative_angles(case, solver.solve(t, t_c).delta)
+    ref = relative_angles(case, reference(case, t, t_c)[0])
+    return {"traj_t_c": t_c.tolist(), "traj_t": t.tolist(), "traj_pred": pred.tolist(), "traj_ref": ref.tolist()}
+
+
 def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """One row: the fault case's contingency, the adapter's CCT (s) and the reference's, the error
     (s, the adapter's minus the reference's), the final bracket, the search's `solve` calls and
     trajectories, and the warm time of the whole search (`median_s`, `q25_s`, `q75_s` over
-    `repeats` searches, s, named as the latency suite names a query's)."""
+    `repeats` searches, s, named as the latency suite names a query's); and the trajectories of
+    the figure (`_trajectories`)."""
     if case.fault is None:
         raise ValueError(f"case {case.name!r} is no fault case: it has no CCT")
     found: list[Search] = []
@@ -144,10 +164,10 @@ def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     timing = time_call(search, warmup=1, min_repeats=settings.min_repeats, budget_s=settings.latency_budget_s,
                        slow_s=settings.max_call_s)
     result = found[-1]
-    reference = reference_cct(case)
-    return [{
+    ref_cct = reference_cct(case)
+    return [{**_trajectories(solver, ref_cct), 
         "contingency": case.fault.name, "machines": case.n, "method": "grid + bisection" if solver.trains else "bisection",
-        "cct_s": result.cct_s, "reference_cct_s": reference, "cct_error_s": result.cct_s - reference,
+        "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
         "stable_s": result.stable_s, "unstable_s": result.unstable_s, "note": result.note,
         "solves": result.solves, "trajectories": result.trajectories, "bracket_s": BRACKET_S,
         "criterion_dt_s": CRITERION_DT_S, "angle_limit_rad": ANGLE_LIMIT,
