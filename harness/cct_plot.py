@@ -9,7 +9,7 @@ import numpy as np
 
 from harness.analysis import label, ok, trained
 from harness.labels import Labels
-from harness.plot_style import legend_beside, palette
+from harness.plot_style import palette
 from systems.stability import ANGLE_LIMIT
 
 __all__ = ["cct_plot"]
@@ -18,7 +18,8 @@ __all__ = ["cct_plot"]
 def cct_plot(frames: dict, names: Labels):
     """Three panels: the trajectories (angles from the centre of inertia, rad) cleared before and
     after the reference CCT, the reference thick and grey, each adapter dashed (a surrogate's first
-    seed), the limit +-pi dotted; then each adapter's CCT error (ms) beside the bracket (+-1 ms).
+    seed), the limit +-pi dotted, one legend below; then each adapter's CCT error (ms) beside the
+    bracket (+-1 ms).
     None without cct rows that carry trajectories."""
     df = ok(frames.get("cct"))
     if df.empty or "traj_pred" not in df:
@@ -56,7 +57,8 @@ def cct_plot(frames: dict, names: Labels):
     ax.set_xlabel("CCT error (ms), adapter - reference")
     ax.set_title(f"reference CCT {first['reference_cct_s']:.4f} s")
     ax.grid(alpha=0.3, axis="x")
-    legend_beside(axes[1])
     fig.suptitle(f"{first['case']}: trajectories either side of the CCT (reference grey, adapters dashed)")
     fig.tight_layout()
+    handles, texts = axes[0].get_legend_handles_labels()
+    fig.legend(handles, texts, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(4, len(texts)), fontsize=7)
     return fig
