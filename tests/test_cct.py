@@ -76,6 +76,13 @@ class ShiftedSurrogate(AbstractSolver):
         raise NotImplementedError
 
 
+class StepsOnly(ReferenceFaults):
+    """The same, declared not to integrate fault cases."""
+
+    name: ClassVar[str] = "steps-only"
+    handles_faults: ClassVar[bool] = False
+
+
 def _fitted(cls: type[AbstractSolver], case: Case) -> AbstractSolver:
     solver = cls(case)
     solver.fit()
@@ -134,19 +141,20 @@ def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():
 
 
 def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(monkeypatch):
-    """On a fault case: the adapters with handles_faults (scipy-rk45 has not: no unit); on a step
-    case the suite is recorded as skipped. The units run, and the fault case's section of the report
+    """On a fault case: the adapters with handles_faults (no unit for one without); on a step case
+    the suite is recorded as skipped. The units run, and the fault case's section of the report
     has the CCT table and figure: the surrogate's break-even N* is where its training and N* searches
     cost N* searches of the classical adapter (never, when its search is not faster)."""
     monkeypatch.setitem(SOLVERS, ReferenceFaults.name, ReferenceFaults)
     monkeypatch.setitem(SOLVERS, ShiftedSurrogate.name, ShiftedSurrogate)
-    specs = [SolverSpec(ReferenceFaults.name), SolverSpec(ShiftedSurrogate.name, seed=0), SolverSpec("scipy-rk45")]
+    monkeypatch.setitem(SOLVERS, StepsOnly.name, StepsOnly)
+    specs = [SolverSpec(ReferenceFaults.name), SolverSpec(ShiftedSurrogate.name, seed=0), SolverSpec(StepsOnly.name)]
     fault, step = CASES[CASE], CASES["kundur4"]
     result = plan(specs, [fault, step], [SUITES["cct"]], SETTINGS)
     assert [(skip.case.name, skip.spec.solver, skip.reason) for skip in result.not_run] == [
-        (CASE, "scipy-rk45", "skipped: scipy-rk45 does not integrate fault cases (no handles_faults)")]
+        (CASE, StepsOnly.name, f"skipped: {StepsOnly.name} does not integrate fault cases (no handles_faults)")]
     on_step = [unit for unit in result.units if unit.case == step]
-    assert {unit.spec.solver for unit in on_step} == {ReferenceFaults.name, ShiftedSurrogate.name, "scipy-rk45"}
+    assert {unit.spec.solver for unit in on_step} == {ReferenceFaults.name, ShiftedSurrogate.name, StepsOnly.name}
     no_fault = "skipped: cct measures fault cases only, and kundur4 has no fault"
     assert {unit.skipped for unit in on_step} == {(("cct", no_fault),)}
     rows = [row for unit in result.units for _, part in run_unit(unit, SETTINGS, unit.works()) for row in part]
