@@ -154,24 +154,27 @@ def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     the figure (`_trajectories`)."""
     if case.fault is None:
         raise ValueError(f"case {case.name!r} is no fault case: it has no CCT")
-    found: list[Search] = []
     if solver.trains:
-        def search() -> None:
-            found.append(grid_then_bisect(solver, settings.cct_surrogate_step_s))
+        method, run = "grid + bisection", lambda: grid_then_bisect(solver, settings.cct_surrogate_step_s)
     else:
-        def search() -> None:
-            found.append(bisect(solver))
+        method, run = "bisection", lambda: bisect(solver)
+    last: list[Search] = []
+
+    def search() -> None:
+        last[:] = [run()]
+
     timing = time_call(search, warmup=1, min_repeats=settings.min_repeats, budget_s=settings.latency_budget_s,
                        slow_s=settings.max_call_s)
-    result = found[-1]
+    (result,) = last
     ref_cct = reference_cct(case)
-    return [{**_trajectories(solver, ref_cct), 
-        "contingency": case.fault.name, "machines": case.n, "method": "grid + bisection" if solver.trains else "bisection",
+    return [{
+        "contingency": case.fault.name, "machines": case.n, "method": method,
         "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
         "stable_s": result.stable_s, "unstable_s": result.unstable_s, "note": result.note,
         "solves": result.solves, "trajectories": result.trajectories, "bracket_s": BRACKET_S,
         "criterion_dt_s": CRITERION_DT_S, "angle_limit_rad": ANGLE_LIMIT,
         "median_s": timing.median_s, "q25_s": timing.q25_s, "q75_s": timing.q75_s, "repeats": timing.repeats,
+        **_trajectories(solver, ref_cct),
     }]
 
 
