@@ -57,10 +57,13 @@ def _parser() -> argparse.ArgumentParser:
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help=f"suites to run (default: all but scaling): {', '.join(_suite_names())}; scaling "
-                          "measures cost, memory and accuracy against the number of machines, each unit in a "
-                          "process of its own under --unit-seconds and --unit-memory, on the scaling cases "
-                          "(wscc9 ... case2869pegase) unless --case names others")
+                     help=f"suites to run (default: all but scaling and cct): {', '.join(_suite_names())}; "
+                          "scaling measures cost, memory and accuracy against the number of machines, each unit in "
+                          "a process of its own under --unit-seconds and --unit-memory, on the scaling cases "
+                          "(wscc9 ... case2869pegase) unless --case names others; cct finds each fault case's "
+                          "critical clearing time with every adapter that integrates fault cases, alone on the "
+                          "12 fault cases ('<case>-<contingency>'; --quick: wscc9's and kundur4's) unless --case "
+                          "names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help=f"adapters to run (default: every registered one): {', '.join(SOLVERS)}")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
@@ -169,7 +172,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         given = {"seconds": args.unit_seconds, "rss_mb": args.unit_memory}
         limits = (limits or Limits())._replace(**{k: v for k, v in given.items() if v is not None})
     settings = replace(settings, unit_limits=limits)
-    cases = [CASES[name] for name in args.case or (settings.scaling_cases if suites == ["scaling"] else settings.cases)]
+    alone = {"scaling": settings.scaling_cases, "cct": settings.cct_cases}  # a suite run alone: its own cases
+    default_cases = alone.get(suites[0], settings.cases) if len(suites) == 1 else settings.cases
+    cases = [CASES[name] for name in args.case or default_cases]
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise UsageError("swingbench run: no solver/config combination selected")

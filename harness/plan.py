@@ -9,13 +9,15 @@ never from names: what each adapter can do and what its named configs are for
 `Settings`. What it does not run, it says why, at one of three levels:
 
 - a specification on a case (`not_on_case`): a config made for another kind of case, a trained
-  adapter's later seeds on a multi-machine case. No run measures these: no unit, no row.
+  adapter's later seeds on a multi-machine case, an adapter that does not integrate fault cases
+  (`handles_faults`) on a fault case. No run measures these: no unit, no row.
 - a suite of a unit that would repeat a measurement of another unit or that the adapter cannot
   take (`_repeats`): a suite measured on the first seed only, a variant that changes only how a
   model is queried for a suite that measures no queries, a config that is a point of its adapter's
   precision sweep for the suite that sweeps, a suite of work for the do-nothing adapter. No row.
-- a suite the run's settings leave out on that case (`left_out`): the unit records one
-  `skipped: ...` row for it without measuring (another run, e.g. --full, measures it).
+- a suite the run's settings leave out on that case, or one that measures fault cases only on a
+  step case (`left_out`): the unit records one `skipped: ...` row for it without measuring
+  (another run, e.g. --full, measures it).
 
 The first two are `Plan.not_run`; the third is each unit's `Unit.skipped`.
 """
@@ -111,13 +113,16 @@ class Plan:
 def not_on_case(spec: SolverSpec, case: Case, settings: Settings) -> str | None:
     """Why no run measures `spec` on `case` ("skipped: ..."), or None when runs do. A config runs
     on the kinds of case it is made for (`AbstractSolver.made_for`); a multi-machine case costs an
-    adapter that trains minutes a model, so there it runs the run's first seed only. Adapters that
-    are not installed run everywhere: their rows say so."""
+    adapter that trains minutes a model, so there it runs the run's first seed only; a fault case
+    runs the adapters that integrate one (`handles_faults`). Adapters that are not installed run
+    everywhere: their rows say so."""
     cls = solver_class(spec.solver)
     if cls is None:
         return None
     if not cls.made_for(spec.config, case.kind):
         return f"skipped: config {spec.config} of {spec.solver} is not made for {case.kind} cases"
+    if case.fault is not None and not cls.handles_faults:
+        return f"skipped: {spec.solver} does not integrate fault cases (no handles_faults)"
     if cls.trains and case.kind == NETWORK and spec.seed not in (None, settings.seeds[0]):
         return f"skipped: an adapter that trains runs its first seed only on {case.kind} cases"
     return None
@@ -146,7 +151,10 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
     its row), or None when it runs. Identification leaves out the configs with a mark in
     `settings.skip_identify_marks`, the multi-machine cases not in
     `settings.network_identify_cases`, and there every config not declared to identify networks
-    (`IDENTIFIES_NETWORKS`; `identifiers`, the configs that are, for the message)."""
+    (`IDENTIFIES_NETWORKS`; `identifiers`, the configs that are, for the message). A suite of fault
+    cases (`Suite.fault_cases`) leaves out every step case."""
+    if suite.fault_cases and case.fault is None:
+        return f"skipped: {suite.name} measures fault cases only, and {case.name} has no fault"
     cls = solver_class(spec.solver)
     if not suite.identifies or cls is None:
         return None

@@ -1,5 +1,6 @@
 """Plots of a run (PNG and PDF): the paper's figure 3, work-precision, latency against t1,
-identification error per pair. Each function takes the suite frames and the names of their
+identification error per pair, a fault case's trajectories either side of its CCT
+(`harness.cct_plot`). Each function takes the suite frames and the names of their
 configurations (`harness.labels.Labels`) and returns a figure or None."""
 
 from __future__ import annotations
@@ -15,23 +16,14 @@ import pandas as pd
 from matplotlib.lines import Line2D
 
 from harness.analysis import identification_data, label, ok, trained
+from harness.cct_plot import cct_plot
 from harness.labels import Labels
+from harness.plot_style import legend_beside as _legend_beside
+from harness.plot_style import palette as _palette
 from harness.verdict_table import headline, verdicts
 from systems.cases import CASES, standard_grid
 
 __all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
-
-
-def _palette(labels) -> dict:
-    """A distinct colour per label, in order: tab10 up to 10 labels, tab20 up to 20."""
-    labels = list(dict.fromkeys(labels))
-    cmap = plt.get_cmap("tab10" if len(labels) <= 10 else "tab20")
-    return {name: cmap(i % cmap.N) for i, name in enumerate(labels)}
-
-
-def _legend_beside(ax) -> None:
-    """The legend right of the axes, off the data (make_plots saves with a tight bounding box)."""
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
 
 
 def figure3(frames: dict, names: Labels):
@@ -238,7 +230,7 @@ def scaling_accuracy_plot(frames: dict, names: Labels):
 
 
 PLOTS = {"figure3": figure3, "work_precision": work_precision_plot, "latency_t1": latency_t1_plot,
-         "crossover": crossover_plot, "identification": identification_plot}
+         "crossover": crossover_plot, "identification": identification_plot, "cct": cct_plot}
 
 
 SCALING_PLOTS = {"scaling_cost": scaling_cost_plot, "scaling_accuracy": scaling_accuracy_plot}

@@ -30,7 +30,7 @@ from harness.verdict import ladder_rows
 
 __all__ = ["write_report"]
 
-TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref")
+TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref", "traj_t", "traj_pred", "traj_ref")
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:

@@ -13,6 +13,7 @@ from harness.isolation import Limits
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, SWEEP_POINT, AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
+from systems.faults import FAULT_CASES
 
 __all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs"]
 
@@ -97,7 +98,9 @@ class Settings:
     the angles (relative L2) is not finite or exceeds `verdict_gate` counts as a loss. `unit_limits` (None: none) runs each unit in a fresh process under a
     wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
     `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
-    of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`). Which
+    of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`). The cct
+    suite runs on `cct_cases` when the command line names none; a surrogate's CCT search queries
+    clearing times every `cct_surrogate_step_s` s in one batch (`harness.suites.cct`). Which
     spec runs on which case and suite, and why the rest does not, is `harness.plan.plan`'s."""
 
     name: str = "default"
@@ -139,6 +142,8 @@ class Settings:
     verdict_rounds: int = 2
     verdict_pairs: int = 4
     verdict_gate: float = 1e-2
+    cct_cases: tuple[str, ...] = tuple(name for names in FAULT_CASES.values() for name in names)
+    cct_surrogate_step_s: float = 1e-3
 
     def verdict_pinn(self, spec: SolverSpec) -> bool:
         """Whether the verdict suite measures `spec`: its adapter and config are those of an entry
@@ -170,7 +175,8 @@ class Settings:
 # iterations (wscc9's time-marching: 10 a window), small timing budgets and sweeps (on wscc9 two
 # tolerances for the Python-driven adapters); the ablations and the configs for large systems left
 # out, as in make bench, and the configs that are a point of their adapter's sweep (`tight`: the
-# sweep reaches it); no multi-machine identification.
+# sweep reaches it); no multi-machine identification; the cct suite on the wscc9 and kundur4 fault
+# cases, a surrogate's batch of clearing times 10 ms apart (bisection then narrows it to 1 ms).
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, max_query_s=5.0, seeds=(0,),
     pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
@@ -178,7 +184,7 @@ QUICK = Settings(
     t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"), verdict_seeds=(0,),
     verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9), omit_marks=(ABLATION, LARGE_SYSTEMS, SWEEP_POINT),
     network_identify_cases=(), pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
-    network_wp_rtols=(1e-3, 1e-6),
+    network_wp_rtols=(1e-3, 1e-6), cct_cases=(*FAULT_CASES["wscc9"], *FAULT_CASES["kundur4"]), cct_surrogate_step_s=1e-2,
 )
 # make bench: every suite on the SMIB and the three multi-machine cases within about an hour on 2
 # cores (the measured durations are in docs/notebook.md). The cuts that buy it: one seed (--full:

@@ -331,9 +331,10 @@ class AbstractSolver(abc.ABC):
                 "(pass extrapolate=True to evaluate anyway)"
             )
         if p_min < case.p1_min or p_max > case.p1_max:
+            symbol, unit = case.scenario.symbol, case.scenario.unit  # P1 p.u., or a fault case's t_c s
             raise ValueError(
-                f"P1 spans [{p_min!r}, {p_max!r}], outside the trained domain "
-                f"[{case.p1_min}, {case.p1_max}] (pass extrapolate=True to evaluate anyway)"
+                f"{symbol} spans [{p_min!r}, {p_max!r}] {unit}, outside the trained domain "
+                f"[{case.p1_min}, {case.p1_max}] {unit} (pass extrapolate=True to evaluate anyway)"
             )
 
     def solve_points(self, t_query, P1, extrapolate: bool = False) -> Points:

@@ -7,8 +7,10 @@ the switch)."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -16,10 +18,13 @@ from scipy.integrate import solve_ivp
 from systems.cases import CASES, Case, check_array
 from systems.model import rhs
 
-__all__ = ["OFF_TRAINING", "PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "load_seed_reference", "reference",
-           "seed_reference"]
+__all__ = ["OFF_TRAINING", "PAPER_DATA", "REFERENCE_DATA", "REFERENCE_TOL", "SEED_DIR", "Event", "load_seed_reference",
+           "reference", "seed_reference", "switched"]
 
 REFERENCE_TOL = 1e-12
+# A terminal event of the reference integrator: g(t, y, P) whose sign change stops the integration
+# (scipy's `solve_ivp` events; marked terminal by `switched`).
+Event = Callable[[float, np.ndarray, np.ndarray], float]
 # Names of the two data sources of delta in the rows: this module's `reference`, and the paper's
 # published MATLAB ode45 trajectories (`seed_reference`, ~1.2e-3 rad of their own error).
 REFERENCE_DATA = "reference"
@@ -52,33 +57,50 @@ def _reference(case: Case, t_bytes: bytes, p1_bytes: bytes) -> tuple[np.ndarray,
     omega = np.empty_like(delta)
     for i, p1 in enumerate(P1):
         if case.fault is None:
-            y = _integrate(f, 0.0, y0, times, powers[i], p1)
+            y = _integrate(f, 0.0, y0, times, powers[i], p1)[0]
         else:
-            y = _switched(case, float(p1), y0, times, powers[i])
+            y = switched(case, float(p1), times)[0]
         delta[i], omega[i] = y[:n].T, y[n:].T
     delta, omega = delta[:, order], omega[:, order]
     delta.flags.writeable = omega.flags.writeable = False
     return delta, omega
 
 
-def _integrate(f, t0: float, y0: np.ndarray, times: np.ndarray, P: np.ndarray, p1: float) -> np.ndarray:
-    """y (2n, len(times)) of dy/dt = f(t, y, P) from y(t0) = y0 at `times` (sorted, >= t0)."""
+def _integrate(f, t0: float, y0: np.ndarray, times: np.ndarray, P: np.ndarray, p1: float,
+               event: Event | None = None) -> tuple[np.ndarray, float | None]:
+    """y (2n, k) of dy/dt = f(t, y, P) from y(t0) = y0 at `times` (sorted, >= t0; k = len(times),
+    fewer when `event` stopped the integration first) and the time (s) the event stopped it, or
+    None."""
     if times.size == 0:
-        return np.empty((y0.size, 0))
+        return np.empty((y0.size, 0)), None
+    events: Any = None  # scipy's stubs type an event without the `args` that solve_ivp passes it
+    if event is not None:
+        def events(t: float, y: np.ndarray, P: np.ndarray) -> float:
+            return event(t, y, P)
+        events.terminal = True
     sol = solve_ivp(f, (t0, max(times[-1], t0 + 1e-300)), y0, method="DOP853", t_eval=times,
-                    rtol=REFERENCE_TOL, atol=REFERENCE_TOL, args=(P,))
+                    rtol=REFERENCE_TOL, atol=REFERENCE_TOL, args=(P,), events=events)
     if not sol.success:
         raise RuntimeError(f"reference failed at P1={p1!r}: {sol.message}")
-    return sol.y
+    stopped = float(sol.t_events[0][0]) if sol.status == 1 and sol.t_events is not None else None
+    return np.asarray(sol.y, np.float64).reshape(y0.size, -1), stopped  # stopped before any time: y is []
 
 
-def _switched(case: Case, t_c: float, y0: np.ndarray, times: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """y (2n, len(times)) of fault case `case` cleared at t_c s, at sorted `times`: the fault-on
-    phase on [0, t_c) (and to t_c itself), the post-fault phase from the state at t_c."""
+def switched(case: Case, t_c: float, times: np.ndarray, event: Event | None = None
+             ) -> tuple[np.ndarray, float | None]:
+    """The reference trajectory of fault case `case` cleared at t_c s: y = [delta, omega] (2n, k)
+    (rad, rad/s) at the sorted `times` (s, >= 0), the fault-on phase on [0, t_c) (and to t_c
+    itself), the post-fault phase from the state at t_c, no step across the switch; with a
+    terminal `event` g(t, y, P) (P the mechanical powers (n,) p.u.), the integration stops where g
+    changes sign: k < len(times) then, and the second item is that time (s), else None."""
+    y0 = np.array(case.delta0 + case.omega0)
+    P = case.powers(np.array([t_c]))[0]
     split = int(np.searchsorted(times, t_c))
-    on = _integrate(rhs(case.phase("on")), 0.0, y0, np.append(times[:split], t_c), P, t_c)
-    post = _integrate(rhs(case.phase("post")), t_c, on[:, -1], times[split:], P, t_c)
-    return np.concatenate([on[:, :-1], post], axis=1)
+    on, stopped = _integrate(rhs(case.phase("on")), 0.0, y0, np.append(times[:split], t_c), P, t_c, event)
+    if stopped is not None:
+        return on[:, :split], stopped
+    post, stopped = _integrate(rhs(case.phase("post")), t_c, on[:, -1], times[split:], P, t_c, event)
+    return np.concatenate([on[:, :-1], post], axis=1), stopped
 
 
 def load_seed_reference(path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

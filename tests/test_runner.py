@@ -310,7 +310,7 @@ def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_al
     from harness.cli import _suite_names
     from harness.suites import DEFAULT_SUITES
 
-    assert list(SUITES) == _suite_names() == ["accuracy", "identification", "latency", "scaling", "verdict",
+    assert list(SUITES) == _suite_names() == ["accuracy", "cct", "identification", "latency", "scaling", "verdict",
                                                "work_precision"]
     assert all(SUITES[name].run.__module__ == f"harness.suites.{name}" for name in SUITES)
-    assert DEFAULT_SUITES == ("accuracy", "identification", "latency", "verdict", "work_precision")  # scaling alone
+    assert DEFAULT_SUITES == ("accuracy", "identification", "latency", "verdict", "work_precision")  # scaling, cct alone

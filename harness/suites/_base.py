@@ -28,6 +28,7 @@ class Suite:
     trained_only: bool = False  # measures adapters that train only
     verdicts: bool = False  # measures the run's verdict PINNs only (`Settings.verdict_pinn`)
     own_query_path: bool = False  # times every query path of a model itself: not run for a query variant
+    fault_cases: bool = False  # measures fault cases only (`Case.fault`): a step case gets a skipped row
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""

@@ -1,0 +1,181 @@
+"""Critical clearing time: each adapter that integrates fault cases finds each fault case's CCT to a
+bracket of `BRACKET_S` (1 ms), through the adapter interface alone, with the stability criterion of
+`systems.stability` (`is_unstable`: some machine more than pi rad from the centre of inertia within
+the horizon) judged on the time grid `criterion_times` (every `CRITERION_DT_S` = 10 ms over
+[0, t_final]). The reference CCT is `systems.stability.reference_cct` (bisection to 1e-6 s on the
+reference integrator).
+
+- An adapter that does not train: bisection over t_c from the case's range [p1_min, p1_max], each
+  evaluation one `solve(criterion_times, [t_c])` and the criterion on it (the interface has no
+  early stop, so each evaluation integrates the whole horizon): 2 + ceil(log2(range / 1 ms))
+  evaluations, 11 on [0.05, 0.40] s.
+- An adapter that trains (a surrogate): one batched `solve` over a grid of t_c every
+  `Settings.cct_surrogate_step_s` across the range, the criterion on each trajectory, the bracket
+  [last stable, first unstable] taken where the grid first turns unstable, then bisection with
+  single queries down to 1 ms (none when the grid is 1 ms apart).
+
+The CCT is the bracket's midpoint; a method whose trajectories are unstable at p1_min (or stable at
+p1_max) has no CCT inside the range (NaN, the row's `note` says which). The search is timed whole,
+warm, as the latency suite times a query (`harness.timing.time_call`; a search over
+`Settings.max_call_s` is timed once).
+
+Each row holds what its unit measures; the training cost of a surrogate is its unit's `fit` row,
+and the break-even, which needs the other adapters' searches, is computed by the report
+(`harness.cct_table`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.runs import Settings
+from harness.suites._base import Suite
+from harness.timing import time_call
+from solvers.base import AbstractSolver
+from systems.cases import Case
+from systems.model import relative_angles
+from systems.reference import reference
+from systems.stability import ANGLE_LIMIT, is_unstable, reference_cct
+
+__all__ = ["BRACKET_S", "CRITERION_DT_S", "Search", "bisect", "cct", "criterion_times", "grid_then_bisect"]
+
+BRACKET_S = 1e-3  # s: the width of the bracket every method narrows the CCT to
+CRITERION_DT_S = 0.01  # s: the spacing of the times the criterion is judged at
+# The clearing times of the trajectories a row keeps for the figure: this far (s) either side of the
+# reference CCT, within the case's range, every `TRAJECTORY_EVERY`-th time of `criterion_times`.
+TRAJECTORY_OFFSET_S = 0.02
+TRAJECTORY_EVERY = 2
+
+
+@dataclass(frozen=True)
+class Search:
+    """The outcome of one CCT search: the final bracket [stable, unstable] of clearing times (s;
+    NaN on the side the range does not reach), `solves` calls to `solve` holding `trajectories`
+    clearing times in all, and `note` ("" or why there is no CCT in the range)."""
+
+    stable_s: float
+    unstable_s: float
+    solves: int
+    trajectories: int
+    note: str = ""
+
+    @property
+    def cct_s(self) -> float:
+        """The midpoint of the bracket (s); NaN when the range holds no CCT."""
+        return 0.5 * (self.stable_s + self.unstable_s)
+
+
+def criterion_times(case: Case) -> np.ndarray:
+    """Every `CRITERION_DT_S` s on [0, t_final] (t_final included): the times the criterion is
+    judged at, (n_t,) s."""
+    return np.linspace(0.0, case.t_final, round(case.t_final / CRITERION_DT_S) + 1)
+
+
+def _unstable(solver: AbstractSolver, t: np.ndarray, t_c: np.ndarray) -> np.ndarray:
+    """The criterion on `solver`'s trajectories cleared at each of `t_c` (s): bool (len(t_c),)."""
+    return is_unstable(solver.case, solver.solve(t, t_c).delta)
+
+
+def _narrow(unstable: Callable[[float], bool], lo: float, hi: float) -> tuple[float, float, int]:
+    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`: the final bracket
+    and the number of evaluations."""
+    evaluations = 0
+    while hi - lo > BRACKET_S * (1 + 1e-9):
+        mid = 0.5 * (lo + hi)
+        evaluations += 1
+        if unstable(mid):
+            hi = mid
+        else:
+            lo = mid
+    return lo, hi, evaluations
+
+
+def _outside(case: Case, stable_at_max: bool, solves: int, trajectories: int) -> Search:
+    """The search's outcome when the range holds no CCT."""
+    lo, hi = case.p1_min, case.p1_max
+    if stable_at_max:
+        return Search(hi, math.nan, solves, trajectories, f"stable at p1_max = {hi} s: the CCT lies above the range")
+    return Search(math.nan, lo, solves, trajectories, f"unstable at p1_min = {lo} s: the CCT lies below the range")
+
+
+def bisect(solver: AbstractSolver) -> Search:
+    """The CCT search of an adapter that does not train: the range's ends, then bisection, each
+    evaluation one trajectory on `criterion_times`."""
+    case = solver.case
+    t = criterion_times(case)
+    ends = _unstable(solver, t, np.array([case.p1_min, case.p1_max]))
+    if ends[0] or not ends[1]:
+        return _outside(case, not ends[1], 1, 2)
+    lo, hi, evaluations = _narrow(lambda t_c: bool(_unstable(solver, t, np.array([t_c]))[0]), case.p1_min,
+                                  case.p1_max)
+    return Search(lo, hi, 1 + evaluations, 2 + evaluations)
+
+
+def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
+    """The CCT search of a surrogate: one batched query over t_c every `step_s` s across the range
+    (both ends included), the bracket where the criterion first turns unstable, then bisection with
+    single queries."""
+    case = solver.case
+    if not step_s > 0:
+        raise ValueError(f"the surrogate's grid step must be > 0 s, got {step_s!r}")
+    t = criterion_times(case)
+    grid = np.linspace(case.p1_min, case.p1_max, math.ceil(round((case.p1_max - case.p1_min) / step_s, 9)) + 1)
+    unstable = _unstable(solver, t, grid)
+    if unstable[0] or not unstable.any():
+        return _outside(case, not unstable.any(), 1, grid.size)
+    first = int(np.argmax(unstable))
+    lo, hi, evaluations = _narrow(lambda t_c: bool(_unstable(solver, t, np.array([t_c]))[0]),
+                                  float(grid[first - 1]), float(grid[first]))
+    return Search(lo, hi, 1 + evaluations, grid.size + evaluations)
+
+
+def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
+    """The figure's data (`harness.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
+    `TRAJECTORY_OFFSET_S` either side of the reference CCT `ref_cct` (s), clamped to the case's range;
+    `traj_t` (n_t,) s; `traj_pred` and `traj_ref` (2, n_t, n): the adapter's and the reference's
+    angles from the centre of inertia (rad), as lists. Not timed."""
+    case = solver.case
+    t_c = np.clip([ref_cct - TRAJECTORY_OFFSET_S, ref_cct + TRAJECTORY_OFFSET_S], case.p1_min, case.p1_max)
+    t = criterion_times(case)[::TRAJECTORY_EVERY]
+    pred = relative_angles(case, solver.solve(t, t_c).delta)
+    ref = relative_angles(case, reference(case, t, t_c)[0])
+    return {"traj_t_c": t_c.tolist(), "traj_t": t.tolist(), "traj_pred": pred.tolist(), "traj_ref": ref.tolist()}
+
+
+def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+    """One row: the fault case's contingency, the adapter's CCT (s) and the reference's, the error
+    (s, the adapter's minus the reference's), the final bracket, the search's `solve` calls and
+    trajectories, and the warm time of the whole search (`median_s`, `q25_s`, `q75_s` over
+    `repeats` searches, s, named as the latency suite names a query's); and the trajectories of
+    the figure (`_trajectories`)."""
+    if case.fault is None:
+        raise ValueError(f"case {case.name!r} is no fault case: it has no CCT")
+    if solver.trains:
+        method, run = "grid + bisection", lambda: grid_then_bisect(solver, settings.cct_surrogate_step_s)
+    else:
+        method, run = "bisection", lambda: bisect(solver)
+    last: list[Search] = []
+
+    def search() -> None:
+        last[:] = [run()]
+
+    timing = time_call(search, warmup=1, min_repeats=settings.min_repeats, budget_s=settings.latency_budget_s,
+                       slow_s=settings.max_call_s)
+    (result,) = last
+    ref_cct = reference_cct(case)
+    return [{
+        "contingency": case.fault.name, "machines": case.n, "method": method,
+        "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
+        "stable_s": result.stable_s, "unstable_s": result.unstable_s, "note": result.note,
+        "solves": result.solves, "trajectories": result.trajectories, "bracket_s": BRACKET_S,
+        "criterion_dt_s": CRITERION_DT_S, "angle_limit_rad": ANGLE_LIMIT,
+        "median_s": timing.median_s, "q25_s": timing.q25_s, "q75_s": timing.q75_s, "repeats": timing.repeats,
+        **_trajectories(solver, ref_cct),
+    }]
+
+
+SUITE = Suite("cct", cct, default=False, fault_cases=True)

@@ -1,0 +1,178 @@
+"""The cct suite (`harness.suites.cct`) on test-only adapters that integrate fault cases: one that
+answers from the reference integrator (a classical adapter's search, bisection) and a surrogate
+(`trains`, bounded to its domain) whose trajectories turn unstable 2 ms after the reference CCT
+(the grid-then-bisection search); the planner and the report's CCT table."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import ClassVar
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+
+from harness.cct_plot import cct_plot
+from harness.labels import Labels
+from harness.plan import plan
+from harness.runner import run_unit
+from harness.runs import QUICK, SolverSpec
+from harness.sections import case_sections, suite_frames
+from harness.suites import SUITES
+from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
+from harness.tables import build_tables
+from solvers import SOLVERS
+from solvers.base import AbstractSolver, FitReport
+from systems.cases import CASES, Case
+from systems.reference import reference
+from systems.stability import ANGLE_LIMIT, reference_cct
+
+CASE = "kundur4-bus7-line7-8a"
+SHIFT_S = 2e-3  # the surrogate's CCT lies this much after the reference's
+SETTINGS = replace(QUICK, min_repeats=1, latency_budget_s=0.0, cache_dir=None)
+
+
+class ReferenceFaults(AbstractSolver):
+    """The reference integrator behind the adapter interface (DOP853 at 1e-12, the switch exact)."""
+
+    name: ClassVar[str] = "reference-faults"
+    handles_faults: ClassVar[bool] = True
+
+    def _fit(self):
+        return None
+
+    def _solve(self, t, P1):
+        return reference(self.case, t, P1)
+
+    def _identify(self, obs):
+        raise NotImplementedError
+
+
+class ShiftedSurrogate(AbstractSolver):
+    """A stand-in for a trained surrogate, bounded to the case's domain: machines 1 and 2 swing apart
+    about a centre of inertia at 0, the farther by ANGLE_LIMIT (t / t_final) (t_c / t*), t* = the
+    reference CCT + SHIFT_S, so that its trajectories are unstable exactly for t_c > t*."""
+
+    name: ClassVar[str] = "shifted-surrogate"
+    OPTIONS: ClassVar[dict] = {"seed": 0}
+    handles_faults: ClassVar[bool] = True
+    trains: ClassVar[bool] = True
+    bounded_domain: ClassVar[bool] = True
+
+    def _fit(self):
+        self._t_star = reference_cct(CASES[self.case.name]) + SHIFT_S  # the registered case's, whatever the range
+        m = np.asarray(self.case.m)
+        shape = np.zeros(self.case.n)
+        shape[0], shape[1] = 1.0, -m[0] / m[1]  # no move of the centre of inertia
+        self._shape = shape / np.abs(shape).max()
+        return FitReport(seconds=0.0, iterations=1, loss=0.0)  # what a trained model reports
+
+    def _solve(self, t, P1):
+        amplitude = ANGLE_LIMIT * np.outer(P1 / self._t_star, t / self.case.t_final)
+        delta = amplitude[..., None] * self._shape
+        return delta, np.zeros_like(delta)
+
+    def _identify(self, obs):
+        raise NotImplementedError
+
+
+class StepsOnly(ReferenceFaults):
+    """The same, declared not to integrate fault cases."""
+
+    name: ClassVar[str] = "steps-only"
+    handles_faults: ClassVar[bool] = False
+
+
+def _fitted(cls: type[AbstractSolver], case: Case) -> AbstractSolver:
+    solver = cls(case)
+    solver.fit()
+    return solver
+
+
+def test_bisection_on_the_reference_finds_the_reference_cct_within_the_bracket():
+    case = CASES[CASE]
+    (row,) = cct(_fitted(ReferenceFaults, case), case, SETTINGS)
+    assert row["method"] == "bisection" and row["contingency"] == "bus7-line7-8a"
+    assert row["unstable_s"] - row["stable_s"] <= BRACKET_S * (1 + 1e-9)
+    assert abs(row["cct_error_s"]) <= BRACKET_S
+    assert row["solves"] == 10 and row["trajectories"] == 11  # the two ends together, then 9 halvings of 0.35 s
+    assert row["median_s"] > 0 and row["repeats"] >= 1
+
+
+def test_the_surrogate_search_narrows_a_batched_grid_to_the_bracket():
+    """A grid 10 ms apart (36 clearing times, one query) narrowed by 4 single queries to 0.625 ms
+    around the surrogate's own CCT, SHIFT_S after the reference's; a grid 1 ms apart needs none."""
+    case = CASES[CASE]
+    solver = _fitted(ShiftedSurrogate, case)
+    coarse = grid_then_bisect(solver, 1e-2)
+    assert (coarse.solves, coarse.trajectories) == (5, 40)
+    assert coarse.stable_s <= reference_cct(case) + SHIFT_S <= coarse.unstable_s
+    assert coarse.unstable_s - coarse.stable_s <= BRACKET_S
+    (row,) = cct(solver, case, SETTINGS)
+    assert row["method"] == "grid + bisection" and (row["solves"], row["trajectories"]) == (5, 40)
+    assert abs(row["cct_error_s"] - SHIFT_S) <= BRACKET_S / 2
+    fine = grid_then_bisect(solver, 1e-3)
+    assert (fine.solves, fine.trajectories) == (1, 351) and abs(fine.cct_s - coarse.cct_s) <= BRACKET_S
+
+
+def test_a_range_without_the_cct_gives_no_cct_and_says_why():
+    """The searches say so (the suite, whose reference CCT lies outside such a range, too)."""
+    case = CASES[CASE]
+    early = replace(case, p1_max=0.1)
+    found = grid_then_bisect(_fitted(ShiftedSurrogate, early), 1e-2)
+    assert np.isnan(found.cct_s) and found.note == "stable at p1_max = 0.1 s: the CCT lies above the range"
+    late = replace(case, p1_min=0.3)
+    found = bisect(_fitted(ReferenceFaults, late))
+    assert np.isnan(found.cct_s) and found.note == "unstable at p1_min = 0.3 s: the CCT lies below the range"
+    assert (found.solves, found.trajectories) == (1, 2)
+    with pytest.raises(ValueError, match="'kundur4-bus7-line7-8a': unstable at the shortest clearing time p1_min = 0.3 s"):
+        cct(_fitted(ReferenceFaults, late), late, SETTINGS)
+    with pytest.raises(ValueError, match="'kundur4' is no fault case: it has no CCT"):
+        cct(_fitted(ReferenceFaults, CASES["kundur4"]), CASES["kundur4"], SETTINGS)
+
+
+def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():
+    case = CASES[CASE]
+    solver = _fitted(ShiftedSurrogate, case)
+    t = criterion_times(case)
+    with pytest.raises(ValueError, match=r"t_c spans \[0.45, 0.45\] s, outside the trained domain \[0.05, 0.4\] s"):
+        solver.solve(t, np.array([0.45]))
+    assert solver.solve(t, np.array([0.45]), extrapolate=True).delta.shape == (1, t.size, case.n)
+
+
+def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(monkeypatch):
+    """On a fault case: the adapters with handles_faults (no unit for one without); on a step case
+    the suite is recorded as skipped. The units run, and the fault case's section of the report
+    has the CCT table and figure: the surrogate's break-even N* is where its training and N* searches
+    cost N* searches of the classical adapter (never, when its search is not faster)."""
+    monkeypatch.setitem(SOLVERS, ReferenceFaults.name, ReferenceFaults)
+    monkeypatch.setitem(SOLVERS, ShiftedSurrogate.name, ShiftedSurrogate)
+    monkeypatch.setitem(SOLVERS, StepsOnly.name, StepsOnly)
+    specs = [SolverSpec(ReferenceFaults.name), SolverSpec(ShiftedSurrogate.name, seed=0), SolverSpec(StepsOnly.name)]
+    fault, step = CASES[CASE], CASES["kundur4"]
+    result = plan(specs, [fault, step], [SUITES["cct"]], SETTINGS)
+    assert [(skip.case.name, skip.spec.solver, skip.reason) for skip in result.not_run] == [
+        (CASE, StepsOnly.name, f"skipped: {StepsOnly.name} does not integrate fault cases (no handles_faults)")]
+    on_step = [unit for unit in result.units if unit.case == step]
+    assert {unit.spec.solver for unit in on_step} == {ReferenceFaults.name, ShiftedSurrogate.name, StepsOnly.name}
+    no_fault = "skipped: cct measures fault cases only, and kundur4 has no fault"
+    assert {unit.skipped for unit in on_step} == {(("cct", no_fault),)}
+    rows = [row for unit in result.units for _, part in run_unit(unit, SETTINGS, unit.works()) for row in part]
+    assert {row["status"] for row in rows if row["case"] == "kundur4"} == {no_fault}
+    (name, frames), _ = case_sections(suite_frames(rows))
+    assert name == CASE
+    _, table = build_tables(frames)["cct"]
+    assert table["solver"].tolist() == [f"{ReferenceFaults.name} [default]", f"{ShiftedSurrogate.name} [default]"]
+    by_method = frames["cct"].set_index("solver")
+    classical_s, surrogate_s = by_method.loc[ReferenceFaults.name, "median_s"], by_method.loc[ShiftedSurrogate.name, "median_s"]
+    fit_s = frames["fit"].set_index("solver").loc[ShiftedSurrogate.name, "fit_s"]
+    figure = cct_plot(frames, Labels(frames))
+    assert [ax.get_title() for ax in figure.axes][1:] == [
+        f"unstable side: t_c = {reference_cct(fault) + 0.02:.4g} s", f"reference CCT {reference_cct(fault):.4f} s"]
+    plt.close(figure)
+    cell = table["break-even N* (CCT searches)"].iloc[1]
+    if surrogate_s < classical_s:
+        n_star = float(cell)
+        assert fit_s + n_star * surrogate_s == pytest.approx(n_star * classical_s, rel=1e-2)
+    else:  # the stand-in reference answers timed repeats from its cache
+        assert cell == "never"
