@@ -73,12 +73,14 @@ def _integrate(f, t0: float, y0: np.ndarray, times: np.ndarray, P: np.ndarray, p
     None."""
     if times.size == 0:
         return np.empty((y0.size, 0)), None
+    if times[-1] <= t0:  # every time is the start: nothing to integrate (a span of zero length)
+        return np.repeat(y0[:, None], times.size, axis=1), None
     events: Any = None  # scipy's stubs type an event without the `args` that solve_ivp passes it
     if event is not None:
         def events(t: float, y: np.ndarray, P: np.ndarray) -> float:
             return event(t, y, P)
         events.terminal = True
-    sol = solve_ivp(f, (t0, max(times[-1], t0 + 1e-300)), y0, method="DOP853", t_eval=times,
+    sol = solve_ivp(f, (t0, times[-1]), y0, method="DOP853", t_eval=times,
                     rtol=REFERENCE_TOL, atol=REFERENCE_TOL, args=(P,), events=events)
     if not sol.success:
         raise RuntimeError(f"reference failed at P1={p1!r}: {sol.message}")

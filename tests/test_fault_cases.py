@@ -63,6 +63,15 @@ def test_the_reference_is_continuous_at_the_clearing_time_and_its_derivative_swi
     assert np.array_equal(on[:case.n], post[:case.n])  # the angles' derivative, omega, does not jump
 
 
+def test_the_reference_at_the_clearing_time_alone_is_the_state_there():
+    """Queries at t_c only (a post-fault phase of zero length) give the fault-on phase's end state,
+    the same as within a longer query."""
+    case = CASES[CHECKED[0]]
+    alone = _state(case, np.array([0.1, 0.1]), 0.1)
+    within = _state(case, np.array([0.0, 0.1, 0.5]), 0.1)
+    assert np.array_equal(alone[0], alone[1]) and np.abs(alone[0] - within[1]).max() <= 1e-10
+
+
 @pytest.mark.parametrize("name", CHECKED)
 def test_clearing_well_before_the_cct_is_stable_and_well_after_it_unstable(name):
     """20 ms either side of the reference CCT (to 10 ms), judged on the reference every 10 ms (not
