@@ -1,6 +1,6 @@
 """trapezoid with the network kept sparse (`solvers.trapezoid_sparse`): the reduced form's
 trajectories to Newton's tolerance, P_e and each machine's own slope against the dense network's,
-points against solves, Newton's failure, and the option `network`."""
+points and the parallel kernel against solves, Newton's failure, and the option `network`."""
 
 from __future__ import annotations
 
@@ -55,9 +55,13 @@ def test_power_and_own_slope_are_the_dense_networks():
     assert np.abs(jac - np.diag(np.diag(jac))).max() > 1.0  # the coupling left out is not nothing
 
 
-def test_points_have_the_bits_of_solve_and_newton_failure_raises():
+def test_points_and_parallel_have_the_bits_of_solve_and_newton_failure_raises():
     solver = _fitted(CASES["wscc9"], network="sparse")
     check_points_as_solves(solver)
+    t, P1 = np.array([7.5, 0.0, 2.0]), np.linspace(CASES["wscc9"].p1_min, CASES["wscc9"].p1_max, 3)
+    serial, parallel = solver.solve(t, P1), _fitted(CASES["wscc9"], network="sparse", parallel=True).solve(t, P1)
+    np.testing.assert_array_equal(parallel.delta, serial.delta)
+    np.testing.assert_array_equal(parallel.omega, serial.omega)
     failing = _fitted(CASES["wscc9"], network="sparse", max_newton=1)
     with pytest.raises(SolveError, match=r"trapezoid: integration failed at P1=[^:]+: Newton did not converge "
                                          r".*\(step from t=0 s\)"):
