@@ -17,14 +17,18 @@ from systems.cases import Case, Observations
 
 T = TypeVar("T")
 
-__all__ = ["TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "NetworkForm", "ObservationLayout", "PointGroups", "PointsByP1",
-           "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares", "keeps_network_sparse",
-           "points_by_p1", "run_batch", "search_boxes", "which_p1"]
+__all__ = ["SPARSE_FROM_MACHINES", "TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "NetworkForm", "ObservationLayout",
+           "PointGroups", "PointsByP1", "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares",
+           "keeps_network_sparse", "points_by_p1", "run_batch", "search_boxes", "which_p1"]
 
 # The form of the network an adapter integrates: "reduced" (Kron-reduced to the machines, the dense
 # coupling of `systems.model`), "sparse" (kept as the bus admittance matrix, `systems.sparse_network`)
 # or "auto" (by the case's size: `keeps_network_sparse`).
 NetworkForm = Literal["auto", "reduced", "sparse"]
+# network="auto": the network kept sparse from this many machines (when the case carries it). One
+# core, numba-rk dop853, 4 P1 x 101 times: the forms within 30 % of each other at 54 and 69 machines
+# (case118, case300), the sparse one 2-3x faster at 260 and 8-10x at 1445 (docs/scaling.md).
+SPARSE_FROM_MACHINES = 100
 
 
 class ToleranceOptions(OptionSchema):

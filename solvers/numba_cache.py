@@ -29,9 +29,10 @@ PREPARED_KERNELS = (
 
 def _network_kernels() -> None:
     """numba-rk's kernels of `PREPARED_KERNELS` (through its own preparation: serial, batch and
-    points kernels, and the sensitivities' where named), wscc9's with the sparse network, and the
-    PINN query evaluator of wscc9's architecture."""
+    points kernels, and the sensitivities' where named), wscc9's with the sparse network (numba-rk's
+    and the trapezoid's, serial and parallel), and the PINN query evaluator of wscc9's architecture."""
     from solvers.numba_rk import NumbaRK
+    from solvers.trapezoid import Trapezoid
     from systems.cases import CASES
 
     for name, method, parallel, sensitivities in PREPARED_KERNELS:
@@ -40,6 +41,8 @@ def _network_kernels() -> None:
         if sensitivities:
             solver._prepare(sensitivities=True)
     NumbaRK(CASES["wscc9"], network="sparse").fit()
+    for parallel in (False, True):
+        Trapezoid(CASES["wscc9"], network="sparse", parallel=parallel, threads=1).fit()
     try:
         from solvers.pinn.architecture import Architecture
         from solvers.pinn.compiled import NumbaEvaluator

@@ -12,6 +12,7 @@ import numpy as np
 from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
 from solvers.classical import (
+    SPARSE_FROM_MACHINES,
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     NetworkForm,
@@ -36,10 +37,6 @@ _FAILURES = {
 }
 COARSE_TOLERANCES = (1e-6, 1e-9)  # rtol, atol of the start grid of identify
 RK4_STEPS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)  # s, the work-precision sweep of rk4
-# network="auto": the network kept sparse from this many machines (when the case carries it). One
-# core, dop853, 4 P1 x 101 times: the forms within 30 % of each other at 54 and 69 machines (case118,
-# case300), the sparse one 2-3x faster at 260 and 8-10x at 1445 (docs/scaling.md).
-SPARSE_FROM_MACHINES = 100
 
 
 Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.METHODS`

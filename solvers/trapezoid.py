@@ -10,8 +10,18 @@ import numba
 import numpy as np
 
 from solvers import trapezoid_kernels as kernels
-from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, SolveError
-from solvers.classical import ObservationLayout, PointGroups, check_step, identify_least_squares, search_boxes
+from solvers import trapezoid_sparse
+from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, FitReport, SolveError
+from solvers.classical import (
+    SPARSE_FROM_MACHINES,
+    NetworkForm,
+    ObservationLayout,
+    PointGroups,
+    check_step,
+    identify_least_squares,
+    keeps_network_sparse,
+    search_boxes,
+)
 from solvers.numba_kernels import NOT_FINITE, D, M, check_threads, system_array
 from solvers.options import Bounds, OptionSchema, PositiveFloat, PositiveInt, StrictBool
 from solvers.trapezoid_faults import fault_kernel
@@ -39,6 +49,7 @@ class TrapezoidOptions(OptionSchema):
     max_newton: PositiveInt = 20  # iterations a step
     parallel: StrictBool = False
     threads: PositiveInt = 2  # <= numba's NUMBA_NUM_THREADS (checked by the adapter)
+    network: NetworkForm = "auto"
     m_bounds: Bounds | None = None
     d_bounds: Bounds | None = None
 
@@ -54,13 +65,19 @@ class Trapezoid(AbstractSolver):
     Options: dt (s, default half a cycle, 1/120 s: ceil(t / dt) equal steps; config "tight":
     `TIGHT_STEP`); newton_tol (rad, default 1e-10: the largest angle update at which Newton stops,
     far below the truncation error); max_newton (iterations a step before SolveError); parallel
-    (P1 over numba threads, prange), with `threads` of them; m_bounds, d_bounds (p.u.; default the
-    case's boxes), the search box of `identify`: least squares with a finite-difference Jacobian.
+    (P1 over numba threads, prange), with `threads` of them; network ("reduced", "sparse" or "auto",
+    the default: sparse from `classical.SPARSE_FROM_MACHINES` machines on a case that carries its
+    network, numba-rk's rule); m_bounds, d_bounds (p.u.; default the case's boxes), the search box
+    of `identify`: least squares with a finite-difference Jacobian.
     `stats` (n_trajectories, 4): each trajectory's `trapezoid_kernels.STATS` in the last call.
-    The network is the case's Kron-reduced one, dense: a factorisation costs ~n^3 / 3
+    Reduced, the network is the case's Kron-reduced one, dense: a factorisation costs ~n^3 / 3
     multiply-adds, an iteration ~5 n^2 (P_e 4 n^2, the triangular solves n^2), a step one more P_e.
-    A fault case (`Case.fault`, P1 the clearing time t_c s): the fault-on phase to t_c, ending on a
-    step, then the post-fault phase from the state at t_c (`solvers.trapezoid_faults`).
+    Sparse (`solvers.trapezoid_sparse`), P_e comes from the bus voltages (two sparse triangular
+    solves with the SuperLU factors of the unreduced network) and the Newton matrix is diagonal
+    (each machine's own slope, no factorisation): an iteration costs O(nnz(L + U) + n).
+    A fault case (`Case.fault`, P1 the clearing time t_c s), on its reduced networks: the fault-on
+    phase to t_c, ending on a step, then the post-fault phase from the state at t_c
+    (`solvers.trapezoid_faults`).
     """
 
     name: ClassVar[str] = "trapezoid"
@@ -83,23 +100,31 @@ class Trapezoid(AbstractSolver):
         options = self.options
         check_step(self.name, options["dt"], self.case)
         check_threads(self.name, options["threads"])
+        keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
 
-    def _fit(self) -> None:
+    def _fit(self) -> FitReport:
         """Packed system and options, and the compiled kernel (numba compiles, or loads from its
         cache, on the first call: here, on times t = 0, which compile every path and step none; a
-        fault case's cleared at t_c = 0)."""
+        fault case's cleared at t_c = 0) of the network's form; the report names the form of a
+        network."""
         options, case = self.options, self.case
         self._options = np.array([options["dt"], options["newton_tol"], options["max_newton"]], np.float64)
         self.stats = np.zeros((0, len(kernels.STATS)))
-        if case.fault is None:
-            self._system = system_array(case)
-            self._kernel = kernels.run_kernel(options["parallel"])
-        else:
+        message = ""
+        if case.fault is not None:
             self._system, self._post = system_array(case.phase("on")), system_array(case.phase("post"))
             self._fault = fault_kernel(options["parallel"])
+        elif keeps_network_sparse(self.name, options["network"], case, SPARSE_FROM_MACHINES):
+            self._system, self._kernel, net = trapezoid_sparse.prepare(case, options["parallel"])
+            message = f"network: sparse ({net.l_inv.size} buses, nnz(L + U) {net.nnz})"
+        else:
+            self._system = system_array(case)
+            self._kernel = kernels.run_kernel(options["parallel"])
+            message = "" if case.network is None else "network: reduced"
         scenario = np.full(2, case.p1_min if case.fault is None else 0.0)
         self._solve(np.zeros(2), scenario)
         self._solve_points(np.zeros(2), scenario)
+        return FitReport(seconds=0.0, message=message)
 
     def _run(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, P1: np.ndarray, system: np.ndarray,
              options: np.ndarray, shared: bool) -> np.ndarray:
