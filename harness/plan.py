@@ -110,14 +110,15 @@ class Plan:
 
 def not_on_case(spec: SolverSpec, case: Case, settings: Settings) -> str | None:
     """Why no run measures `spec` on `case` ("skipped: ..."), or None when runs do. A config runs
-    on the kinds of case it is made for (`AbstractSolver.made_for`); a multi-machine case costs an
+    on the kinds of case and scenarios it is made for (`AbstractSolver.made_for`); a multi-machine case costs an
     adapter that trains minutes a model, so there it runs the run's first seed only. Adapters that
     are not installed run everywhere: their rows say so."""
     cls = solver_class(spec.solver)
     if cls is None:
         return None
-    if not cls.made_for(spec.config, case.kind):
-        return f"skipped: config {spec.config} of {spec.solver} is not made for {case.kind} cases"
+    if not cls.made_for(spec.config, case.kind, case.scenario):
+        what = case.kind if case.fault is None else f"fault ({case.scenario.symbol})"
+        return f"skipped: config {spec.config} of {spec.solver} is not made for {what} cases"
     if cls.trains and case.kind == NETWORK and spec.seed not in (None, settings.seeds[0]):
         return f"skipped: an adapter that trains runs its first seed only on {case.kind} cases"
     return None
