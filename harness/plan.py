@@ -112,15 +112,16 @@ class Plan:
 
 def not_on_case(spec: SolverSpec, case: Case, settings: Settings) -> str | None:
     """Why no run measures `spec` on `case` ("skipped: ..."), or None when runs do. A config runs
-    on the kinds of case it is made for (`AbstractSolver.made_for`); a multi-machine case costs an
-    adapter that trains minutes a model, so there it runs the run's first seed only; a fault case
-    runs the adapters that integrate one (`handles_faults`). Adapters that are not installed run
-    everywhere: their rows say so."""
+    on the kinds of case and scenarios it is made for (`AbstractSolver.made_for`); a multi-machine case costs an
+    adapter that trains minutes a model, so there it runs the run's first seed only. Adapters that
+    are not installed run everywhere: their rows say so; a fault case runs the adapters that
+    integrate one (`handles_faults`)."""
     cls = solver_class(spec.solver)
     if cls is None:
         return None
-    if not cls.made_for(spec.config, case.kind):
-        return f"skipped: config {spec.config} of {spec.solver} is not made for {case.kind} cases"
+    if not cls.made_for(spec.config, case.kind, case.scenario):
+        what = case.kind if case.fault is None else f"fault ({case.scenario.symbol})"
+        return f"skipped: config {spec.config} of {spec.solver} is not made for {what} cases"
     if case.fault is not None and not cls.handles_faults:
         return f"skipped: {spec.solver} does not integrate fault cases (no handles_faults)"
     if cls.trains and case.kind == NETWORK and spec.seed not in (None, settings.seeds[0]):

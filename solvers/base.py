@@ -11,7 +11,7 @@ import numpy as np
 
 from solvers.identification import Estimate, assess, data_shortfall
 from solvers.options import OptionSchema, defaults, validate_options
-from systems.cases import KINDS, Case, Observations, check_array
+from systems.cases import FAULT_SCENARIO, KINDS, STEP_SCENARIO, Case, Observations, Scenario, check_array
 
 __all__ = [
     "ABLATION",
@@ -41,6 +41,8 @@ LARGE_SYSTEMS = "large systems"  # made for systems of hundreds of machines (the
 ABLATION = "ablation"  # changes one design choice of another config, to measure what that choice is worth
 SWEEP_POINT = "sweep point"  # sets only options the adapter's precision sweep sets: a point of the default curve
 CONFIG_MARKS = frozenset({IDENTIFIES_NETWORKS, LARGE_SYSTEMS, ABLATION, SWEEP_POINT})
+# The scenarios a config may be made for (`AbstractSolver.CASE_SCENARIOS`)
+SCENARIOS = (STEP_SCENARIO, FAULT_SCENARIO)
 
 _INF = float("inf")
 _F64 = np.dtype(np.float64)
@@ -173,6 +175,10 @@ class AbstractSolver(abc.ABC):
       them out of a trained model's key;
     - `CASE_KINDS`: config -> the kinds of case (`systems.cases.Case.kind`) it is made for; a
       config it does not list is made for every kind (`made_for`);
+    - `CASE_SCENARIOS`: config -> the scenarios (`systems.cases.Case.scenario`: a step of P1,
+      `STEP_SCENARIO`, or a fault cleared at t_c, `FAULT_SCENARIO`) it is made for; a config it does
+      not list is made for both (`made_for`; an adapter without `handles_faults` still refuses a
+      fault case when built);
     - `CONFIG_MARKS`: config -> what it is for, from `solvers.base.CONFIG_MARKS` (`marks`);
     - `blas_threads`: the BLAS thread count its queries are timed with, when it is not the run's
       (the fastest for the adapter, measured; see the class that sets it);
@@ -196,6 +202,7 @@ class AbstractSolver(abc.ABC):
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset()
     CASE_KINDS: ClassVar[Mapping[str, frozenset[str]]] = {}
+    CASE_SCENARIOS: ClassVar[Mapping[str, frozenset[Scenario]]] = {}
     CONFIG_MARKS: ClassVar[Mapping[str, frozenset[str]]] = {}
 
     def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
@@ -214,9 +221,10 @@ class AbstractSolver(abc.ABC):
         return [{"dt": float(h)} for h in steps[:len(rtols)]]
 
     @classmethod
-    def made_for(cls, config: str, kind: str) -> bool:
-        """Whether named config `config` is made for cases of kind `kind` (`Case.kind`)."""
-        return kind in cls.CASE_KINDS.get(config, KINDS)
+    def made_for(cls, config: str, kind: str, scenario: Scenario = STEP_SCENARIO) -> bool:
+        """Whether named config `config` is made for cases of kind `kind` (`Case.kind`) whose
+        scenario is `scenario` (`Case.scenario`)."""
+        return kind in cls.CASE_KINDS.get(config, KINDS) and scenario in cls.CASE_SCENARIOS.get(config, SCENARIOS)
 
     @classmethod
     def marks(cls, config: str) -> frozenset[str]:
@@ -230,13 +238,15 @@ class AbstractSolver(abc.ABC):
             if "OPTIONS" in cls.__dict__:
                 raise TypeError(f"{cls.__name__}: declare options once, in SCHEMA; OPTIONS is derived")
             cls.OPTIONS = defaults(schema)
-        for attribute, known in (("CASE_KINDS", frozenset(KINDS)), ("CONFIG_MARKS", CONFIG_MARKS)):
+        declared: tuple[tuple[str, frozenset[Any]], ...] = (
+            ("CASE_KINDS", frozenset(KINDS)), ("CASE_SCENARIOS", frozenset(SCENARIOS)), ("CONFIG_MARKS", CONFIG_MARKS))
+        for attribute, known in declared:
             for config, values in getattr(cls, attribute).items():
                 if config not in cls.CONFIGS:
                     raise TypeError(f"{cls.__name__}.{attribute} names {config!r}, none of its CONFIGS")
                 if not set(values) <= known:
-                    raise TypeError(f"{cls.__name__}.{attribute}[{config!r}]: unknown {sorted(set(values) - known)}; "
-                                    f"known: {', '.join(sorted(known))}")
+                    raise TypeError(f"{cls.__name__}.{attribute}[{config!r}]: unknown "
+                                    f"{sorted(map(str, set(values) - known))}; known: {', '.join(sorted(map(str, known)))}")
 
     def __init__(self, case: Case, config: str = DEFAULT_CONFIG, **options: Any) -> None:
         if not isinstance(case, Case):

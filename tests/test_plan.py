@@ -24,6 +24,7 @@ from solvers.base import (
     AbstractSolver,
 )
 from systems.cases import CASES, NETWORK, SMIB, SMIB_IDENTIFICATION, SMIB_INFERENCE, smib_case
+from systems.faults import FAULT_CASES
 
 # Every unit of work of make bench's plans, as the harness chose them before the planner (the
 # runner's plan with `Settings.measures`, the identification and work-precision suites' own checks):
@@ -108,8 +109,10 @@ def test_declared_capabilities_agree_with_the_adapters_options(name):
     assert cls.QUERY_OPTIONS <= options
     for config in cls.CONFIGS:
         assert cls.marks(config) <= CONFIG_MARKS
-        # a point of the sweep: a config that sets only the options its sweep sets
-        solver = make_solver(name, SMIB_INFERENCE, config)
+        # a point of the sweep: a config that sets only the options its sweep sets (built on a
+        # case of the scenario it is made for: a config made for fault cases alone refuses a step)
+        steps = cls.made_for(config, SMIB) or cls.made_for(config, NETWORK)
+        solver = make_solver(name, SMIB_INFERENCE if steps else CASES[FAULT_CASES["wscc9"][0]], config)
         sweep = solver.precision_sweep((1e-3,))
         covered = bool(sweep) and bool(cls.CONFIGS[config]) and set(cls.CONFIGS[config]) <= set(sweep[0])
         assert (SWEEP_POINT in cls.marks(config)) == covered, config

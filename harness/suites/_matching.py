@@ -166,7 +166,7 @@ def _families(case: Case, settings: Settings) -> list[tuple[str, str, tuple]]:
             continue
         for config in cls.CONFIGS:
             marks = cls.marks(config)
-            if not cls.made_for(config, case.kind) or SWEEP_POINT in marks or marks & set(settings.omit_marks):
+            if not cls.made_for(config, case.kind, case.scenario) or SWEEP_POINT in marks or marks & set(settings.omit_marks):
                 continue
             out.extend((name, config, tuple(sorted(v.items()))) for v in ({}, *cls.VARIANTS))
     return out

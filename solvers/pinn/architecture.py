@@ -51,9 +51,11 @@ class Architecture:
             object.__setattr__(self, name, tuple(float(x) for x in np.atleast_1d(getattr(self, name))))
         object.__setattr__(self, "sizes", tuple(int(x) for x in self.sizes))
         n = len(self.delta0)
-        if len(self.omega0) != n or self.sizes[-1] not in (n, 2 * n) or self.n_extra not in (0, 2 * n):
-            raise ValueError(f"Architecture: {n} machines (delta0), omega0 {len(self.omega0)}, output "
-                             f"layer {self.sizes[-1]} and n_extra {self.n_extra} do not fit together")
+        if (len(self.omega0) != n or self.sizes[-1] not in (n, 2 * n) or self.n_extra not in (0, 2 * n)
+                or self.sizes[0] != 2):
+            raise ValueError(f"Architecture: {n} machines (delta0), omega0 {len(self.omega0)}, input layer "
+                             f"{self.sizes[0]}, output layer {self.sizes[-1]} and n_extra {self.n_extra} do not "
+                             "fit together")
 
     @classmethod
     def of(cls, config: PinnConfig, case: Case, identification: bool = False,
@@ -75,6 +77,12 @@ class Architecture:
             p_lo=float(p_lo), p_hi=float(p_hi), hard_ic=config.hard_ic,
             delta0=case.delta0, omega0=case.omega0, n_extra=2 * case.n if identification else 0,
         )
+
+    @property
+    def p_mid(self) -> float:
+        """The middle of the P1 range (normalised input 0): the constant scenario input of a fault
+        case's fault-on networks, whose trajectory does not depend on the clearing time."""
+        return 0.5 * (self.p_lo + self.p_hi)
 
     @property
     def machines(self) -> int:

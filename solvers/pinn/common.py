@@ -10,7 +10,6 @@ hooks (`solvers.pinn.evaluator.MarchingEvaluator`).
 from __future__ import annotations
 
 import abc
-import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,21 +22,24 @@ from solvers.identification import Estimate, linearised_covariance
 from solvers.options import PositiveInt, StrictBool
 from solvers.pinn.architecture import Architecture, init_theta, start_guess
 from solvers.pinn.config import CONFIGS, PinnConfig, PinnConfigSchema
-from solvers.pinn.evaluator import Evaluator, MarchingEvaluator, walk
+from solvers.pinn.evaluator import Evaluator, MarchingEvaluator, SwitchedEvaluator
+from solvers.pinn.marching import TrainWindow, train_chain, train_phases
 from solvers.pinn.model_file import load_model, save_model
 from solvers.pinn.network import Physics
 from solvers.pinn.optim import OptimResult, lbfgs, levenberg_marquardt
 from solvers.pinn.problems import (
+    PhaseEdges,
     Problem,
     forward_problem,
     identification_p_range,
     identification_problem,
     observations_within,
+    phase_edges,
     window_edges,
     window_problem,
 )
 from solvers.progress import progress_enabled
-from systems.cases import NETWORK, SMIB, Observations, case_record
+from systems.cases import FAULT_SCENARIO, NETWORK, SMIB, STEP_SCENARIO, Observations, Scenario, case_record
 
 __all__ = ["PinnSolver", "Trainer"]
 
@@ -93,6 +95,7 @@ class PinnSolver(AbstractSolver):
 
     bounded_domain: ClassVar[bool] = True
     trains: ClassVar[bool] = True
+    handles_faults: ClassVar[bool] = True  # with `phases` (the fault-marching config), and only so
     takes_threads: ClassVar[bool] = True
     can_save: ClassVar[bool] = True
     # the compiled query path of the same trained model (the model cache ignores `query`)
@@ -104,14 +107,24 @@ class PinnSolver(AbstractSolver):
     # time-marching windows (`solvers.pinn.config.CONFIGS`), which the SMIB does not.
     CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {
         "default": frozenset({SMIB}), "paper": frozenset({SMIB}), "paper-two-outputs": frozenset({SMIB}),
-        "two-outputs": frozenset({SMIB}), "marching": frozenset({NETWORK})}
+        "two-outputs": frozenset({SMIB}), "marching": frozenset({NETWORK}), "fault-marching": frozenset({NETWORK})}
+    # a fault case's switched phases (`PinnConfig.phases`) are the fault-marching config's alone
+    CASE_SCENARIOS: ClassVar[dict[str, frozenset[Scenario]]] = {
+        config: frozenset({FAULT_SCENARIO if options.get("phases") else STEP_SCENARIO})
+        for config, options in CONFIGS.items()}
     # the two-output networks weigh the paper's second formulation against its first
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {
         "paper-two-outputs": frozenset({ABLATION}), "two-outputs": frozenset({ABLATION}),
         "marching": frozenset({IDENTIFIES_NETWORKS})}
 
     def _check_options(self) -> None:
+        """A fault case needs the switched phases (option phases, the fault-marching config); a
+        step case refuses them."""
         self.pinn_config = PinnConfig.from_options(self.options)  # validated already, by PinnOptions
+        fault = self.case.fault is not None
+        if self.pinn_config.phases != fault:
+            raise ValueError(f"{self.name}: option phases must be {fault} for case {self.case.name!r} ("
+                             + ("a fault case: use config fault-marching)" if fault else "a step case)"))
 
     # ---- backend hooks ---------------------------------------------------------------------
 
@@ -189,46 +202,63 @@ class PinnSolver(AbstractSolver):
                          message=result.message + (f"; {note}" if note else ""))
 
     def _fit_marching(self, arch: Architecture, deadline: float, note: str) -> FitReport:
-        """Train the windows of a time-marching model in turn (see `PinnConfig`): window w's points
-        get the start states the trained windows 0..w-1 reach at their P1 (constants of its
-        training, from the framework's evaluator whatever `query` says, so that training does not
-        depend on it); each window has `max_iterations` and an equal share of the time left."""
+        """Train the windows of a time-marching model in turn (`marching.train_chain`): window w's
+        points get the start states the trained windows 0..w-1 reach at their P1 (from the
+        framework's evaluator whatever `query` says, so that training does not depend on it); each
+        window has `max_iterations` and an equal share of the time left. A fault case's switched
+        model (`PinnConfig.phases`): `_fit_phases`."""
         config = self.pinn_config
+        if config.phases:
+            return self._fit_phases(arch, deadline, note)
         edges = window_edges(self.case.t_final, config.window)
-        lengths = np.diff(edges)
-        start0 = np.array([arch.delta0, arch.omega0], np.float64)
         evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
-        walker = evaluator.inner if self.options["query"] == "framework" else self._make_evaluator(arch, config.dtype)
-        thetas: list[np.ndarray] = []
-        prepared: list[Any] = []
-        iterations, losses, messages = 0, [], []
-        for w in range(lengths.size):
-            problem = window_problem(config, self.case, edges, w)
-            problem = dataclasses.replace(
-                problem,
-                start_u=walk(walker, prepared, lengths, problem.p_u, start0)[:, -1] if problem.t_u.size else None,
-                start_f=walk(walker, prepared, lengths, problem.p_f, start0)[:, -1],
-            )
-            # the windows' problems differ in their arrays only: the backends compile once
-            # (`Problem.signature`)
-            trainer = self._compile(arch, problem, self.physics, config.dtype)
-            now = time.perf_counter()
-            window_deadline = now + (deadline - now) / (lengths.size - w)  # an equal share of what is left
-            theta0 = init_theta(arch, config.seed, window=w)  # (a warm start from window w - 1 measured no better)
-            result = self._train(arch, problem, theta0, config.max_iterations, window_deadline,
-                                 f"fit window {w + 1}/{lengths.size}", trainer)
-            thetas.append(result.theta)
-            prepared.append(walker.prepare(result.theta))
-            iterations += result.iterations
-            losses.append(result.loss)
-            messages.append(result.message)
+        start0 = np.array([arch.delta0, arch.omega0], np.float64)
+        chain = train_chain(self._window_trainer(arch, self.physics), lambda w: window_problem(config, self.case, edges, w),
+                            np.diff(edges), lambda P1: start0, self._walker(arch, evaluator), deadline, label="fit window")
         self.windows = edges
-        self._set_model(arch, np.stack(thetas), evaluator)
-        worst = int(np.argmax(losses))
-        message = (f"{lengths.size} windows of {config.window:g} s, {iterations} iterations; largest loss "
-                   f"{losses[worst]:.3g} in window {worst + 1}: {messages[worst]}")
-        return FitReport(seconds=0.0, iterations=iterations, loss=float(np.sum(losses)),
+        self._set_model(arch, np.stack(chain.thetas), evaluator)
+        return FitReport(seconds=0.0, iterations=sum(chain.iterations), loss=float(np.sum(chain.losses)),
+                         message=chain.summary(f"windows of {config.window:g} s") + (f"; {note}" if note else ""))
+
+    def _fit_phases(self, arch: Architecture, deadline: float, note: str) -> FitReport:
+        """Train a fault case's switched model (`PinnConfig.phases`, `marching.train_phases`)."""
+        config = self.pinn_config
+        edges = phase_edges(self.case, config.window, config.pieces)
+        evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
+        on, post = train_phases(config, self.case, arch, edges,
+                                lambda physics, first: self._window_trainer(arch, physics, first),
+                                self._walker(arch, evaluator), deadline)
+        self.windows = edges
+        self._set_model(arch, np.stack(on.thetas + post.thetas), evaluator)
+        message = (f"{on.summary(f'fault-on windows of {config.window:g} s')}; "
+                   f"{post.summary(f'post-fault windows of {config.window:g} s')}")
+        return FitReport(seconds=0.0, iterations=sum(on.iterations) + sum(post.iterations),
+                         loss=float(np.sum(on.losses) + np.sum(post.losses)),
                          message=message + (f"; {note}" if note else ""))
+
+    def _window_trainer(self, arch: Architecture, physics: Physics, first: int = 0) -> TrainWindow:
+        """`marching.train_chain`'s training function: window w (the model's window first + w,
+        which seeds its initial weights) under `physics`, `max_iterations`. The windows' problems
+        differ in their arrays only: the backends compile once (`Problem.signature`)."""
+        config = self.pinn_config
+
+        def train(problem: Problem, w: int, deadline: float, what: str) -> OptimResult:
+            trainer = self._compile(arch, problem, physics, config.dtype)
+            # (a warm start from window w - 1 measured no better)
+            theta0 = init_theta(arch, config.seed, window=first + w)
+            return self._train(arch, problem, theta0, config.max_iterations, deadline, what, trainer)
+
+        return train
+
+    def _walker(self, arch: Architecture, evaluator: Evaluator) -> Evaluator:
+        """The framework's evaluator of one window (the query evaluator's own, unless `query` is
+        "numba"): what training walks the windows' start states with."""
+        if self.options["query"] != "framework":
+            return self._make_evaluator(arch, self.pinn_config.dtype)
+        if isinstance(evaluator, SwitchedEvaluator):
+            return evaluator.on.inner
+        assert isinstance(evaluator, MarchingEvaluator)  # a time-marching model's
+        return evaluator.inner
 
     def _set_model(self, arch: Architecture, theta: np.ndarray, evaluator: Evaluator | None = None) -> None:
         """Use the network(s) `theta` ((n_params,), or (W, n_params) with `self.windows`)."""
@@ -238,9 +268,10 @@ class PinnSolver(AbstractSolver):
         self._evaluate = evaluator or self._query_evaluator(arch, self.windows)
         self._evaluate.load(self.theta)
 
-    def _query_evaluator(self, arch: Architecture, edges: np.ndarray | None = None) -> Evaluator:
+    def _query_evaluator(self, arch: Architecture, edges: np.ndarray | PhaseEdges | None = None) -> Evaluator:
         """The evaluator the `query` option names, compiled and warmed up; for a time-marching model
-        (window `edges` s) the `MarchingEvaluator` over it."""
+        (window `edges` s) the `MarchingEvaluator` over it, for a fault case's switched model
+        (`PhaseEdges`) the `SwitchedEvaluator`."""
         if self.options["query"] == "numba":
             # numba is an optional dependency: a PINN queried through its framework works without it
             from solvers.pinn.compiled import NumbaEvaluator
@@ -248,6 +279,8 @@ class PinnSolver(AbstractSolver):
             inner = NumbaEvaluator(arch, threads=self.options["threads"])
         else:
             inner = self._make_evaluator(arch, self.pinn_config.dtype)
+        if isinstance(edges, PhaseEdges):
+            return SwitchedEvaluator(inner, arch, edges.on, edges.post, edges.pieces)
         return inner if edges is None else MarchingEvaluator(inner, arch, edges)
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -267,6 +300,9 @@ class PinnSolver(AbstractSolver):
         the noise variance from the leave-one-out data residuals (a network that nearly
         interpolates its samples hides the noise in its own residuals)."""
         config = self.pinn_config
+        if self.case.fault is not None:
+            raise ValueError(f"{self.name}: identification on fault case {self.case.name!r} is not implemented "
+                             "(its network switches at the clearing time)")
         deadline = config.deadline(time.perf_counter(), identification=True)
         note = self._prepare_backend()
         n = self.case.n
@@ -311,8 +347,8 @@ class PinnSolver(AbstractSolver):
         the case it records (machines, initial state, P1 and t ranges, window edges)."""
         saved = load_model(path)
         if saved["case"] != self.case:
-            differ = [name for name, value in case_record(self.case).items()
-                      if getattr(saved["case"], name) != value]
+            theirs = case_record(saved["case"])
+            differ = [name for name, value in case_record(self.case).items() if theirs.get(name) != value]
             raise ValueError(f"{path}: saved for case {saved['case'].name!r}, this solver has case "
                              f"{self.case.name!r} (fields that differ: {', '.join(differ)})")
         self.options.update(saved["config"].to_json())

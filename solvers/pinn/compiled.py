@@ -30,8 +30,9 @@ import numba
 import numpy as np
 
 from solvers.pinn.architecture import Architecture
-from solvers.pinn.evaluator import Evaluator, MarchingEvaluator
+from solvers.pinn.evaluator import Evaluator, MarchingEvaluator, SwitchedEvaluator
 from solvers.pinn.model_file import load_model
+from solvers.pinn.problems import PhaseEdges
 
 __all__ = ["NumbaEvaluator", "compiled_model"]
 
@@ -350,10 +351,13 @@ class NumbaEvaluator(Evaluator):
 def compiled_model(path, threads: int = 1) -> Evaluator:
     """The `NumbaEvaluator` of a model saved by either backend (`save_model`, `<path>.npz`
     and `<path>.json`), loaded with its weights: queries without torch or JAX; for a time-marching
-    model the `MarchingEvaluator` over it."""
+    model the `MarchingEvaluator` over it, for a fault case's switched model the `SwitchedEvaluator`."""
     saved = load_model(path)
     evaluator: Evaluator = NumbaEvaluator(saved["arch"], threads)
-    if saved["windows"] is not None:
-        evaluator = MarchingEvaluator(evaluator, saved["arch"], saved["windows"])
+    windows = saved["windows"]
+    if isinstance(windows, PhaseEdges):
+        evaluator = SwitchedEvaluator(evaluator, saved["arch"], windows.on, windows.post, windows.pieces)
+    elif windows is not None:
+        evaluator = MarchingEvaluator(evaluator, saved["arch"], windows)
     evaluator.load(saved["theta"])
     return evaluator

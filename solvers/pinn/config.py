@@ -75,6 +75,17 @@ class PinnConfig:
     restricts identification to the observations at t <= id_t_max and collocates on [0, id_t_max]:
     a single network does not learn a multi-machine case's swings beyond a few seconds (see
     "marching"), and a network that cannot represent the trajectory biases m and d.
+    Switched phases (`phases`, fault cases only, with `window` and no data points): the fault-on
+    phase is a chain of windows over t in [0, p1_max] (the longest clearing time) whose networks
+    take the constant `Architecture.p_mid` as their scenario input (the fault-on trajectory
+    does not depend on t_c), the residual that of the fault-on network; the post-fault phase a
+    chain of windows over tau = t - t_c in [0, t_final - p1_min] whose networks take (tau, t_c),
+    the first starting from the fault-on chain's state at t = t_c (a function of t_c), the residual
+    that of the post-fault network (`problems.PhaseEdges`); with `pieces` K > 1, K such chains,
+    each for an equal piece of the clearing times (its t_c rescaled onto the whole range as the
+    networks' input). `max_iterations` is per window of every chain. The state is continuous at
+    t_c by construction; a step case refuses the option, and a fault case every configuration
+    without it.
     `seed` draws weights and points.
     """
 
@@ -100,6 +111,8 @@ class PinnConfig:
     m_init: PositiveFloat | None = None
     d_init: PositiveFloat | None = None
     window: PositiveFloat | None = None
+    phases: StrictBool = False
+    pieces: PositiveInt = 1
 
     def __post_init__(self) -> None:
         # the field types above, checked by `PinnConfigSchema`; the values it returns (an int
@@ -138,6 +151,15 @@ class PinnConfigSchema(dataclass_schema(PinnConfig)):
         if self.window is not None and not self.hard_ic:
             raise ValueError("option window (time-marching) needs hard_ic=True: each window starts "
                              "from the state the previous one reaches, built into its output")
+        return self
+
+    @model_validator(mode="after")
+    def _phases_march_without_data(self) -> PinnConfigSchema:
+        if self.phases and (self.window is None or self.n_u):
+            raise ValueError("option phases (a fault case's switched phases) needs window set and n_u=0: each "
+                             "phase is a chain of windows whose initial state is exact, without data points")
+        if self.pieces > 1 and not self.phases:
+            raise ValueError("option pieces needs phases=True (a fault case's switched phases)")
         return self
 
 
@@ -199,5 +221,19 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "window": 0.5, "hidden_layers": 2, "width": 20, "outputs": 1, "hard_ic": True, "dtype": "float64",
         "n_u": 0, "n_f": 400, "optimizer": "lm", "max_iterations": 2000, "max_seconds": 300.0,
         "id_t_max": 1.5, "id_max_iterations": 5000,
+    },
+    # A fault case (issue 23): the switched phases (`phases`), windows as "marching" trains them,
+    # the post-fault phase in 8 pieces of clearing times. Measured (JAX, threads 1, seed 0, 300 s on
+    # 1 core of a machine shared with other jobs; COI rel. L2 over 36 t_c x 301 t, CCT from the
+    # surrogate's answers against the reference's; docs/pinn-faults.md): kundur4-bus7-line7-8a
+    # 2.0e-5, CCT +0.002 ms (12373 LM iterations); wscc9-bus8-line8-9 0.18, CCT -0.85 ms (11793):
+    # beyond its CCT one machine slips poles and those rows stay at 1e-2..5e-1 (the stable rows of
+    # the first pieces: 1e-5). 4 pieces: kundur4 4.9e-5 / +0.02 ms, wscc9 0.17 / -4.8 ms; one
+    # chain over all clearing times: wscc9 0.64 / -18 ms (a network smooth in t_c does not follow
+    # the trajectories' split at the CCT); 0.25 s windows (4 pieces): wscc9 0.20 / -7.1 ms.
+    "fault-marching": {
+        "window": 0.5, "phases": True, "pieces": 8, "hidden_layers": 2, "width": 20, "outputs": 1,
+        "hard_ic": True, "dtype": "float64", "n_u": 0, "n_f": 400, "optimizer": "lm", "max_iterations": 2000,
+        "max_seconds": 300.0,
     },
 }

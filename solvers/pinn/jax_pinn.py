@@ -117,8 +117,8 @@ class JaxPinn(PinnSolver):
 def _jitted(arch: Architecture, problem: Problem, physics: Physics, case: Any, dtype: str) -> tuple:
     """The jitted residual, Jacobian and loss-and-gradient functions of (theta, data) for `problem`
     and the problems of its signature (they use `problem` only for its sizes and weights, and
-    `physics` is `case`'s: the key holds what they depend on besides their arguments)."""
-    key = (arch, problem.signature, case, dtype)
+    `physics` is `case`'s, or its phase's: the key holds what they depend on besides their arguments)."""
+    key = (arch, problem.signature, case, physics.phase, dtype)
     if key in _JIT_CACHE:
         _JIT_CACHE.move_to_end(key)
         return _JIT_CACHE[key]

@@ -19,14 +19,16 @@ import numpy as np
 from solvers.atomic import write_atomically
 from solvers.pinn.architecture import Architecture
 from solvers.pinn.config import PinnConfig
-from systems.cases import Case, case_record
+from solvers.pinn.problems import PhaseEdges
+from systems.cases import Case, Fault, case_record
 
 __all__ = ["FORMAT_VERSION", "CorruptModelError", "check_model_case", "load_model", "save_model",
            "weights_sha256"]
 
 # 2: the .json records the weights' sha256 (version 1 files, without it, still load);
 # 3: N machines (tuples in case and architecture, per-machine m, d of an identification) and
-#    time-marching models ("windows": the window edges, "theta" one row per window)
+#    time-marching models ("windows": the window edges, "theta" one row per window); a fault case's
+#    switched model records its case's fault and "windows" {"on": [...], "post": [...]}
 FORMAT_VERSION = 3
 
 
@@ -67,7 +69,7 @@ def record_sha256(info: Mapping) -> str:
 
 def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Architecture,
                theta: np.ndarray, identification: dict | None = None,
-               windows: np.ndarray | None = None) -> tuple[Path, Path]:
+               windows: np.ndarray | PhaseEdges | None = None) -> tuple[Path, Path]:
     """Write the weights to `<path>.npz` (key "theta": the flat float64 vector in
     `Architecture.shapes` order, or for a time-marching model with window edges `windows` (W + 1,)
     s one such row per window, (W, n_params)) and config, case, architecture, the window edges, the
@@ -83,7 +85,7 @@ def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Archi
                 "d": np.atleast_1d(np.asarray(identification["d"], np.float64)).tolist(),
                 "architecture": identification["arch"].to_json()}
     record = {"config": config.to_json(), "case": case_record(case), "architecture": arch.to_json(),
-              "windows": None if windows is None else np.asarray(windows, np.float64).tolist(),
+              "windows": _windows_json(windows),
               "identification": info}
     arrays["record_sha256"] = np.frombuffer(record_sha256(record).encode(), np.uint8)
     text = json.dumps({
@@ -93,6 +95,20 @@ def save_model(path, *, solver: str, config: PinnConfig, case: Case, arch: Archi
     write_atomically(npz, lambda fh: np.savez(fh, **arrays))
     write_atomically(meta, lambda fh: fh.write(text.encode()))
     return npz, meta
+
+
+def _windows_json(windows: np.ndarray | PhaseEdges | None) -> list | dict | None:
+    """The window edges as JSON: a list (s), {"on": [...], "post": [...], "pieces": [...]} for
+    `PhaseEdges`, or None."""
+    if isinstance(windows, PhaseEdges):
+        return {"on": windows.on.tolist(), "post": windows.post.tolist(), "pieces": windows.pieces.tolist()}
+    return None if windows is None else np.asarray(windows, np.float64).tolist()
+
+
+def _case_from_json(data: dict) -> Case:
+    """The `Case` of a `case_record` read back from JSON (its fault, when it has one, a dict)."""
+    fault = data.get("fault")
+    return Case(**{**data, **({} if fault is None else {"fault": Fault(**fault)})})
 
 
 def _arch_from_json(data: dict) -> Architecture:
@@ -144,15 +160,29 @@ def _check_weights(npz: Path, name: str, array: np.ndarray | None, arch: Archite
     return array
 
 
-def _edges(meta: Path, value, case: Case) -> np.ndarray | None:
-    """The window edges of a time-marching model, checked: increasing from 0 to t_final."""
+def _edges(meta: Path, value, case: Case) -> np.ndarray | PhaseEdges | None:
+    """The window edges of a time-marching model, checked: increasing from 0 to t_final; for a
+    fault case's switched model (a dict) the `PhaseEdges`, from 0 to p1_max, from 0 to
+    t_final - p1_min and the pieces from p1_min to p1_max."""
     if value is None:
         return None
+    if isinstance(value, dict):
+        if set(value) != {"on", "post", "pieces"}:
+            raise CorruptModelError(f"{meta}: windows {value!r} are neither edges nor the phases 'on', 'post' "
+                                    "and 'pieces'")
+        return PhaseEdges(_span(meta, value["on"], 0.0, case.p1_max, "fault-on windows"),
+                          _span(meta, value["post"], 0.0, case.t_final - case.p1_min, "post-fault windows"),
+                          _span(meta, value["pieces"], case.p1_min, case.p1_max, "pieces of clearing times"))
+    return _span(meta, value, 0.0, case.t_final, "windows")
+
+
+def _span(meta: Path, value, start: float, end: float, what: str) -> np.ndarray:
+    """`value` as edges, checked: increasing from `start` to `end` (s)."""
     edges = np.asarray(value, np.float64)
-    ok = (edges.ndim == 1 and edges.size >= 2 and np.isfinite(edges).all() and edges[0] == 0.0
-          and edges[-1] == case.t_final and (np.diff(edges) > 0).all())
+    ok = (edges.ndim == 1 and edges.size >= 2 and np.isfinite(edges).all() and edges[0] == start
+          and edges[-1] == end and (np.diff(edges) > 0).all())
     if not ok:
-        raise CorruptModelError(f"{meta}: windows {value!r} are not edges from 0 to t_final = {case.t_final} s")
+        raise CorruptModelError(f"{meta}: {what} {value!r} are not edges from {start} to {end} s")
     return edges
 
 
@@ -211,7 +241,8 @@ def check_model_case(record: Mapping, case: Case, file) -> None:
         raise CorruptModelError(f"{file}: trained for {arch.machines} machine{'s' * (arch.machines != 1)}, "
                                 f"case {case.name} has {case.n}")
     problems = _arch_differences(arch, Architecture.of(config, case))
-    longest = None if windows is None else float(np.diff(windows).max())
+    spans = [] if windows is None else [windows.on, windows.post] if isinstance(windows, PhaseEdges) else [windows]
+    longest = max((float(np.diff(edges).max()) for edges in spans), default=None)
     if longest is not None and longest > arch.t_hi * (1 + 1e-9):  # `window_edges`' last window may overrun by less
         problems.append(f"windows up to {longest!r} s long, the window network covers {arch.t_hi!r} s")
     ident = record["identification"]
@@ -234,7 +265,7 @@ def check_model_case(record: Mapping, case: Case, file) -> None:
 def load_model(path) -> dict:
     """Read what `save_model` wrote: a dict with config (PinnConfig), case (Case), arch
     (Architecture), theta (float64 (n_params,), or (W, n_params) for a time-marching model),
-    windows (None, or the window edges (W + 1,) s), identification (None or dict m, d (n,), arch,
+    windows (None, the window edges (W + 1,) s, or a switched model's `PhaseEdges`), identification (None or dict m, d (n,), arch,
     theta), saved_by. Raises FileNotFoundError for a missing file and `CorruptModelError` for one
     that is unreadable, of another format version, incomplete, of the wrong shapes, not the weights
     its .json records (`weights_sha256`, format versions 2 and 3: every array, each window's
@@ -247,15 +278,17 @@ def load_model(path) -> dict:
     arrays = _read_arrays(npz)
     try:
         arch = _arch_from_json(info["architecture"])
-        config, case = PinnConfig(**info["config"]), Case(**info["case"])
+        config, case = PinnConfig(**info["config"]), _case_from_json(info["case"])
         ident = info.get("identification")
         id_arch = None if ident is None else _arch_from_json(ident["architecture"])
     except (KeyError, TypeError, ValueError) as exc:
         raise CorruptModelError(f"{meta}: missing or bad field: {type(exc).__name__}: {exc}") from exc
     windows = _edges(meta, info.get("windows"), case)
-    if (windows is None) != (config.window is None):
-        raise CorruptModelError(f"{meta}: config window = {config.window!r} but windows = {info.get('windows')!r}")
-    theta = _check_weights(npz, "theta", arrays.get("theta"), arch, None if windows is None else windows.size - 1)
+    if (windows is None) != (config.window is None) or isinstance(windows, PhaseEdges) != config.phases:
+        raise CorruptModelError(f"{meta}: config window = {config.window!r}, phases = {config.phases!r} but "
+                                f"windows = {info.get('windows')!r}")
+    rows = None if windows is None else windows.count if isinstance(windows, PhaseEdges) else windows.size - 1
+    theta = _check_weights(npz, "theta", arrays.get("theta"), arch, rows)
     identification = None
     if ident is not None:
         m, d = _machine_values(meta, ident, id_arch.machines)

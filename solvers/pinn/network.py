@@ -16,6 +16,7 @@ fixed initial condition, and t is the time since the window's start.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -80,20 +81,34 @@ class Physics:
     """The swing equations a forward network satisfies, numpy float64 (each backend converts them to
     its dtype where it uses them): the coupling of `systems.model.coupling`, m and d (n,) p.u., and
     the mechanical powers P = P1 first + rest (p.u.; first = e_1, rest = p_m with generator 1's
-    entry 0: generator 1 gets P1, the others the case's p_m, as `Case.powers`)."""
+    entry 0: generator 1 gets P1, the others the case's p_m, as `Case.powers`). `phase` names a
+    fault case's phase ('on' or 'post', `of_phase`), "" for a step case: what compiled training
+    functions are keyed by besides the case."""
 
     coupling: Coupling
     m: np.ndarray
     d: np.ndarray
     first: np.ndarray
     rest: np.ndarray
+    phase: str = ""
 
     @classmethod
     def of(cls, case: Case) -> Physics:
+        """A step case's equations: generator 1's power is the scenario input P1."""
+        if case.fault is not None:
+            raise ValueError(f"case {case.name!r} is a fault case: its equations are those of a phase (of_phase)")
         first = np.zeros(case.n)
         first[0] = 1.0
         rest = np.asarray(case.p_m, np.float64) * (1.0 - first)
         return cls(coupling(case), np.asarray(case.m, np.float64), np.asarray(case.d, np.float64), first, rest)
+
+    @classmethod
+    def of_phase(cls, case: Case, which: str) -> Physics:
+        """Fault case `case`'s equations in phase `which` ('on' or 'post'): the coupling of
+        `Case.phase(which)`'s network and P = p_m whatever the scenario input (the clearing time)."""
+        step = cls.of(case.phase(which))
+        return dataclasses.replace(step, first=np.zeros_like(step.first),
+                                   rest=np.asarray(case.p_m, np.float64), phase=which)
 
     @property
     def n(self) -> int:

@@ -8,7 +8,9 @@ d in p.u. s/rad.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.stats import qmc
@@ -16,8 +18,8 @@ from scipy.stats import qmc
 from solvers.pinn.config import PinnConfig
 from systems.cases import Case, Observations, standard_grid
 
-__all__ = ["Problem", "forward_problem", "identification_p_range", "identification_problem",
-           "observations_within", "window_edges", "window_problem"]
+__all__ = ["PhaseEdges", "Problem", "forward_problem", "identification_p_range", "identification_problem",
+           "observations_within", "phase_edges", "phase_problem", "window_edges", "window_problem"]
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,43 @@ def window_edges(t_final: float, window: float) -> np.ndarray:
     (a remainder below 1e-9 of a window is dropped rather than made a window of its own)."""
     count = max(1, int(np.ceil(t_final / window - 1e-9)))
     return np.append(window * np.arange(count, dtype=np.float64), float(t_final))
+
+
+class PhaseEdges(NamedTuple):
+    """The windows of a fault case's switched model (`PinnConfig.phases`): `on` (W_on + 1,) edges
+    in t s from 0 to p1_max (the longest clearing time), `post` (W_post + 1,) edges in
+    tau = t - t_c s from 0 to t_final - p1_min (the longest post-fault horizon), and `pieces`
+    (K + 1,) the clearing times (s) from p1_min to p1_max that cut the post-fault phase into K
+    chains of those windows, one per piece."""
+
+    on: np.ndarray
+    post: np.ndarray
+    pieces: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """W_on + K W_post, the rows of the model's parameters (fault-on windows first)."""
+        return self.on.size - 1 + (self.pieces.size - 1) * (self.post.size - 1)
+
+
+def phase_edges(case: Case, window: float, pieces: int = 1) -> PhaseEdges:
+    """The `PhaseEdges` of fault case `case` with windows of `window` s (`window_edges` of each
+    phase's span) and `pieces` equal pieces of its clearing times."""
+    return PhaseEdges(window_edges(case.p1_max, window), window_edges(case.t_final - case.p1_min, window),
+                      np.linspace(case.p1_min, case.p1_max, pieces + 1))
+
+
+def phase_problem(config: PinnConfig, case: Case, edges: PhaseEdges, phase: str, w: int, p_mid: float,
+                  piece: int = 0) -> Problem:
+    """The training set of window w of a fault case's `phase` ('on' or 'post'): `window_problem`'s
+    collocation points over that phase's edges, times since the window's start; the scenario input
+    over [p1_min, p1_max] for the post-fault phase (piece `piece`'s clearing times mapped onto it,
+    `evaluator.SwitchedEvaluator.position`), the constant `p_mid` for the fault-on phase (whose
+    trajectory does not depend on t_c). Seeds differ between phases and pieces."""
+    if phase == "on":
+        problem = window_problem(config, case, edges.on, w)
+        return dataclasses.replace(problem, p_f=np.full_like(problem.p_f, p_mid))
+    return window_problem(dataclasses.replace(config, seed=config.seed + 104729 * (1 + piece)), case, edges.post, w)
 
 
 def window_problem(config: PinnConfig, case: Case, edges: np.ndarray, w: int) -> Problem:
