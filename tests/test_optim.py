@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from solvers.pinn.optim import lbfgs, levenberg_marquardt
+from solvers.pinn.optim import _pcg, gauss_newton_cg, lbfgs, levenberg_marquardt
 
 NO_DEADLINE = float("inf")
 
@@ -169,6 +169,71 @@ def test_lm_stops_when_no_step_descends(theta0, reason):
     assert result.message == f"Levenberg-Marquardt: {reason}" and 0 < result.iterations < 1000
     np.testing.assert_array_equal(result.theta, theta0)
     assert result.loss == float((theta0 - 3.0) @ (theta0 - 3.0))
+
+
+# ---- matrix-free Gauss-Newton (Levenberg-Marquardt by conjugate gradients) --------------------
+
+
+def _gn_cg(residuals, jacobian, theta0, **options):
+    """gauss_newton_cg on an explicit Jacobian: J v, J^T u and diag(J^T J) from `jacobian`."""
+    options = {"max_iterations": 200, "deadline": NO_DEADLINE, "cg_iterations": 50, "cg_tol": 1e-12, **options}
+    return gauss_newton_cg(residuals, lambda theta, v: jacobian(theta) @ v, lambda theta, u: jacobian(theta).T @ u,
+                           lambda theta: np.sum(jacobian(theta) ** 2, axis=0), theta0, **options)
+
+
+def test_pcg_solves_a_symmetric_positive_definite_system_in_n_products():
+    rng = np.random.default_rng(1)
+    B = rng.normal(size=(8, 6))
+    A = B.T @ B + np.diag(rng.uniform(0.1, 10.0, 6))  # SPD, unevenly scaled rows
+    b = rng.normal(size=6)
+    x, products = _pcg(lambda v: A @ v, b, 1.0 / np.diag(A), max_iterations=50, tol=1e-13)
+    np.testing.assert_allclose(A @ x, b, rtol=1e-10, atol=1e-12)
+    assert products <= 7  # n = 6 in exact arithmetic, one more for rounding
+    x2, products2 = _pcg(lambda v: A @ v, b, 1.0 / np.diag(A), max_iterations=2, tol=1e-13)
+    assert products2 == 2 and np.linalg.norm(A @ x2 - b) < np.linalg.norm(b)  # a partial solve still reduces
+
+
+@pytest.mark.parametrize("problem", ["linear", "exp-decay", "rosenbrock"])
+def test_gn_cg_reaches_the_minimum_levenberg_marquardt_reaches(problem):
+    if problem == "linear":
+        residuals, jacobian, _, _ = _linear(consistent=True)
+        theta0 = np.zeros(3)
+    elif problem == "exp-decay":
+        (residuals, jacobian), theta0 = _exp_decay(), np.array([1.0, 0.1])
+    else:
+        residuals, jacobian, theta0 = _rosenbrock_residuals, _rosenbrock_jacobian, ROSENBROCK_START
+    lm = levenberg_marquardt(residuals, jacobian, theta0, max_iterations=200, deadline=NO_DEADLINE)
+    result = _gn_cg(residuals, jacobian, theta0)
+    np.testing.assert_allclose(result.theta, lm.theta, rtol=1e-10)
+    assert result.loss < 1e-20 and result.success and result.iterations < 200
+    assert result.message.startswith("Gauss-Newton-CG: gradient below gtol")
+
+
+def test_gn_cg_with_truncated_conjugate_gradients_still_descends_to_the_minimum():
+    """Two CG products per step on a 12-parameter linear problem: every step is inexact, each kept
+    step lowers the loss, and the iteration still reaches the least-squares solution."""
+    rng = np.random.default_rng(2)
+    A = rng.normal(size=(40, 12)) * np.logspace(0, 2, 12)  # columns scaled over two decades
+    b = rng.normal(size=40)
+    seen = []
+    result = _gn_cg(lambda theta: A @ theta - b, lambda theta: A, np.zeros(12), max_iterations=2000,
+                    cg_iterations=2, progress=lambda i, loss: seen.append(loss))
+    np.testing.assert_allclose(result.theta, np.linalg.lstsq(A, b, rcond=None)[0], rtol=1e-6)
+    assert seen == sorted(seen, reverse=True) and result.success
+
+
+def test_gn_cg_respects_max_iterations_the_deadline_and_a_non_finite_start():
+    seen = []
+    result = _gn_cg(_rosenbrock_residuals, _rosenbrock_jacobian, ROSENBROCK_START, max_iterations=3,
+                    progress=lambda i, loss: seen.append(i))
+    assert result.iterations == 3 and seen == [1, 2, 3]
+    assert result.message.startswith("Gauss-Newton-CG: reached max_iterations=3")
+    past = _gn_cg(_rosenbrock_residuals, _rosenbrock_jacobian, ROSENBROCK_START,
+                  deadline=time.perf_counter() - 1.0)
+    assert past.iterations == 0 and past.message.startswith("Gauss-Newton-CG: reached the time budget")
+    np.testing.assert_array_equal(past.theta, ROSENBROCK_START)
+    bad = _gn_cg(lambda theta: np.array([np.nan, 1.0]), lambda theta: np.eye(2), np.zeros(2))
+    assert not bad.success and bad.iterations == 0 and "non-finite initial loss" in bad.message
 
 
 # ---- L-BFGS --------------------------------------------------------------------------------

@@ -157,7 +157,7 @@ def test_identification_refuses_a_fault_case(switched):
 
     solver, _ = switched
     obs = Observations(np.array([0.5, 1.0]), np.array([0.1, 0.2]), np.zeros((2, solver.case.n)))
-    with pytest.raises(ValueError, match="identification on fault case"):
+    with pytest.raises(ValueError, match="identification on a fault case"):
         solver.identify(obs)
 
 

@@ -36,7 +36,8 @@ from systems.faults import FAULT_CASES
 # per window (`Settings.case_pinn_options`) where they were seconds; and bench-quick's cuts (no
 # ablations, configs for large systems or sweep points such as `tight`, no network identification).
 # Recorded again when the trapezoid adapter joined the registry: its units added, every other entry
-# as it was.
+# as it was; and when the PINNs' `marching-large` (a config for large systems) joined: its units
+# added to the full and scaling runs, every other entry as it was.
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {

@@ -59,8 +59,17 @@ class PinnConfig:
     Loss = loss_scale * (MSE of the data + MSE of each residual) (Levenberg-Marquardt is invariant
     to the scale, and scipy's L-BFGS-B tests curvature pairs relatively: unlike torch.optim.LBFGS,
     neither needs it; it stays for experiments).
-    `optimizer`: "lm" (Levenberg-Marquardt on the stacked residuals) or "lbfgs" (scipy L-BFGS-B,
-    `lbfgs_history` pairs, as in the paper's TensorFlow ScipyOptimizerInterface). Training stops at
+    `optimizer`: "lm" (Levenberg-Marquardt on the stacked residuals), "lbfgs" (scipy L-BFGS-B,
+    `lbfgs_history` pairs, as in the paper's TensorFlow ScipyOptimizerInterface) or "gn-cg"
+    (jax-pinn only: Levenberg-Marquardt with the damped Gauss-Newton system solved by at most
+    `cg_iterations` Jacobi-preconditioned conjugate-gradient steps to a relative residual `cg_tol`,
+    on Jacobian-vector products, never forming J^T J; `optim.gauss_newton_cg`).
+    `residual_units`: the swing residuals in "power" (p.u., m delta'' + d delta' + P_e - P) or in
+    "acceleration" (rad/s^2: machine k's divided by m_k), which weighs every machine's angle error
+    alike where inertias and powers differ by orders of magnitude (a large grid's generator 1 has
+    its P1 of several p.u. and dominates a loss in p.u.); `fit` only (identification, which trains
+    m, keeps p.u.). `warm_start` (time-marching): window
+    w > 0 starts from window w - 1's trained weights instead of fresh ones. Training stops at
     `max_iterations` or on convergence: bounded by iterations, a seed gives the same network on a
     busy machine as on an idle one. `max_seconds` (None by default: no limit) adds a wall-clock
     budget counted from the start of `fit` (data, compilation and warm-up included): training then
@@ -96,9 +105,13 @@ class PinnConfig:
     dtype: Literal["float32", "float64"] = "float64"
     n_u: NonNegativeInt = 40
     n_f: NonNegativeInt = 2000
-    optimizer: Literal["lm", "lbfgs"] = "lm"
+    optimizer: Literal["lm", "lbfgs", "gn-cg"] = "lm"
     loss_scale: PositiveFloat = 1.0
     lbfgs_history: PositiveInt = 50
+    cg_iterations: PositiveInt = 100
+    cg_tol: PositiveFloat = 1e-3
+    residual_units: Literal["power", "acceleration"] = "power"
+    warm_start: StrictBool = False
     max_iterations: PositiveInt = 2000
     max_seconds: PositiveFloat | None = None
     seed: NonNegativeInt = 0
@@ -235,5 +248,18 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "window": 0.5, "phases": True, "pieces": 8, "hidden_layers": 2, "width": 20, "outputs": 1,
         "hard_ic": True, "dtype": "float64", "n_u": 0, "n_f": 400, "optimizer": "lm", "max_iterations": 2000,
         "max_seconds": 300.0,
+    },
+    # Time-marching for grids of tens of machines and more, where "marching"'s Levenberg-Marquardt
+    # costs N P^2 per iteration (case118, 54 machines: J and J^T J ~1.6 s on 1 core, 21600 x 1614):
+    # L-BFGS (a gradient per iteration), the residuals in acceleration units (in p.u. generator 1,
+    # with P1 of 4-8 p.u., dominates the loss), a 2 x 40 network (window 17 of case118, 30 s of
+    # L-BFGS: loss 2.3e-2 at width 20, 9e-3 at 40), 4000 iterations a window. Measured on case118
+    # (seed 0, 1 core): COI rel. L2 2.4e-3 in 473 CPU s (1000 iterations of `marching` with
+    # L-BFGS: 1.9e-2); warm starts (`warm_start`) 3.2e-3. The matrix-free Gauss-Newton ("gn-cg")
+    # lowered the loss less per second than L-BFGS on case118's windows (docs/scaling.md).
+    "marching-large": {
+        "window": 0.5, "hidden_layers": 2, "width": 40, "outputs": 1, "hard_ic": True, "dtype": "float64",
+        "n_u": 0, "n_f": 400, "optimizer": "lbfgs", "residual_units": "acceleration",
+        "max_iterations": 4000, "id_t_max": 1.5, "id_max_iterations": 5000,
     },
 }

@@ -21,7 +21,16 @@ import numpy as np
 from solvers.pinn.architecture import Architecture
 from solvers.pinn.common import PinnOptions, PinnSolver, Trainer
 from solvers.pinn.evaluator import Evaluator
-from solvers.pinn.network import Ops, Physics, delta_omega, jacobian_blocks, residual_vector
+from solvers.pinn.network import (
+    Ops,
+    Physics,
+    data_terms,
+    delta_omega,
+    jacobian_blocks,
+    physics_terms,
+    residual_vector,
+    weighted,
+)
 from solvers.pinn.problems import Problem
 from solvers.threads import configure_threads
 
@@ -44,6 +53,7 @@ _DATA_KEYS = ("t_u", "p_u", "targets", "t_f", "p_f", "start_u", "start_f")
 _JIT_CACHE: OrderedDict[tuple, tuple] = OrderedDict()
 _JIT_CACHE_SIZE = 8
 _DTYPES = {"float32": np.float32, "float64": np.float64}
+_DIAGONAL_BATCH = 64  # points per batch of `_squared_column_sums`
 
 
 def _device(kind: str) -> Any:
@@ -90,7 +100,8 @@ class JaxPinn(PinnSolver):
         with x64:  # the data committed to the device: the jitted functions run where it is
             data = {key: jax.device_put(jnp.asarray(getattr(problem, key), dtype=npdtype), device)
                     for key in _DATA_KEYS if getattr(problem, key) is not None}
-        residual_fn, jacobian_fn, loss_grad_fn = _jitted(arch, problem, physics, self.case, dtype)
+        residual_fn, jacobian_fn, loss_grad_fn, jvp_fn, vjp_fn, diagonal_fn = _jitted(
+            arch, problem, physics, self.case, dtype)
 
         def wrap(fn):
             def call(theta: np.ndarray):
@@ -98,16 +109,23 @@ class JaxPinn(PinnSolver):
                     return fn(np.asarray(theta, npdtype), data)
             return call
 
-        res, jac, lg = wrap(residual_fn), wrap(jacobian_fn), wrap(loss_grad_fn)
+        res, jac, lg, diagonal = wrap(residual_fn), wrap(jacobian_fn), wrap(loss_grad_fn), wrap(diagonal_fn)
 
         def loss_and_grad(theta: np.ndarray) -> tuple[float, np.ndarray]:
             value, grad = lg(theta)
             return float(value), np.asarray(grad, np.float64)
 
+        def product(fn):
+            def call(theta: np.ndarray, v: np.ndarray) -> np.ndarray:
+                with x64:
+                    return np.asarray(fn(np.asarray(theta, npdtype), np.asarray(v, npdtype), data), np.float64)
+            return call
+
         return Trainer(
             residuals=lambda theta: np.asarray(res(theta), np.float64),
             jacobian=lambda theta: np.asarray(jac(theta), np.float64),
-            loss_and_grad=loss_and_grad,
+            loss_and_grad=loss_and_grad, jvp=product(jvp_fn), vjp=product(vjp_fn),
+            diagonal=lambda theta: np.asarray(diagonal(theta), np.float64),
         )
 
     def _make_evaluator(self, arch: Architecture, dtype: str) -> Evaluator:
@@ -115,7 +133,8 @@ class JaxPinn(PinnSolver):
 
 
 def _jitted(arch: Architecture, problem: Problem, physics: Physics, case: Any, dtype: str) -> tuple:
-    """The jitted residual, Jacobian and loss-and-gradient functions of (theta, data) for `problem`
+    """The jitted residual, Jacobian and loss-and-gradient functions of (theta, data) and the
+    Jacobian-vector and vector-Jacobian products of (theta, vector, data) for `problem`
     and the problems of its signature (they use `problem` only for its sizes and weights, and
     `physics` is `case`'s, or its phase's: the key holds what they depend on besides their arguments)."""
     key = (arch, problem.signature, case, physics.phase, dtype)
@@ -130,10 +149,38 @@ def _jitted(arch: Architecture, problem: Problem, physics: Physics, case: Any, d
         jax.jit(vector),
         jax.jit(lambda theta, data: jacobian_blocks(arch, theta, data, OPS, physics, problem)),
         jax.jit(jax.value_and_grad(lambda theta, data: jnp.sum(vector(theta, data) ** 2))),
+        jax.jit(lambda theta, v, data: jax.jvp(lambda th: vector(th, data), (theta,), (v,))[1]),
+        jax.jit(lambda theta, u, data: jax.vjp(lambda th: vector(th, data), theta)[1](u)[0]),
+        jax.jit(lambda theta, data: _squared_column_sums(arch, theta, data, physics, problem)),
     )
     while len(_JIT_CACHE) > _JIT_CACHE_SIZE:
         _JIT_CACHE.popitem(last=False)
     return _JIT_CACHE[key]
+
+
+def _squared_column_sums(arch: Architecture, theta: Any, data: dict, physics: Physics, problem: Problem) -> Any:
+    """diag(J^T J), (n_params,), J = d residual_vector / d theta, without forming J: each point's
+    Jacobian (reverse mode, as `jacobian_blocks`), squared and summed, `_DIAGONAL_BATCH` points at
+    a time (memory batch x residuals per point x n_params)."""
+    w_u, w_f = problem.weights
+    columns = problem.targets.shape[1]
+    params = arch.split(theta)
+
+    def summed(fn: Callable, t: Any, p: Any, s: Any) -> Any:
+        def one(point: tuple) -> Any:
+            t, p, s = point
+            rows = jax.jacrev(lambda ps: fn(ps, t, p, None if s is None else (s[0], s[1])))(params)
+            return jnp.concatenate([jnp.sum(j.reshape(j.shape[0], -1) ** 2, 0) for j in rows])
+        return jnp.sum(jax.lax.map(one, (t, p, s), batch_size=_DIAGONAL_BATCH), 0)
+
+    total = jnp.zeros(arch.n_params, theta.dtype)
+    if problem.t_u.size:
+        total += summed(lambda ps, t, p, s: w_u * data_terms(arch, ps, t, p, OPS, columns, s),
+                        data["t_u"], data["p_u"], data.get("start_u"))
+    if problem.t_f.size:
+        total += summed(lambda ps, t, p, s: weighted(w_f, physics_terms(arch, ps, t, p, OPS, physics, s), OPS),
+                        data["t_f"], data["p_f"], data.get("start_f"))
+    return total
 
 
 @functools.lru_cache(maxsize=_JIT_CACHE_SIZE)

@@ -45,6 +45,7 @@ __all__ = [
     "residual_vector",
     "start_columns",
     "swing_residuals",
+    "weighted",
 ]
 
 Start = tuple[Any, Any] | None  # (delta_s rad, omega_s rad/s), each broadcasting to S + (n,)
@@ -259,6 +260,12 @@ def physics_terms(arch: Architecture, theta: Any, t: Any, p: Any, ops: Ops, phys
                            physics, m, d)
 
 
+def weighted(weight: float | np.ndarray, f: Any, ops: Ops) -> Any:
+    """weight * f for a weight that is a number or a numpy array (r,) over f's last axis (a
+    constant of f's dtype)."""
+    return weight * f if isinstance(weight, float) else ops.asarray(weight, f) * f
+
+
 def start_columns(data: dict, key: str) -> Start:
     """The (delta_s, omega_s) columns of a (points, 2, n) start array in `data`, or None."""
     s = data.get(key)
@@ -279,7 +286,7 @@ def residual_vector(arch: Architecture, theta: Any, data: dict, ops: Ops, physic
         blocks.append(w_u * (pred - data["targets"]).reshape(-1))
     if problem.t_f.size:
         f = physics_terms(arch, theta, data["t_f"], data["p_f"], ops, physics, start_columns(data, "start_f"))
-        blocks.append(w_f * f.reshape(-1))
+        blocks.append(weighted(w_f, f, ops).reshape(-1))
     return ops.concat(blocks, 0)
 
 
@@ -308,7 +315,7 @@ def jacobian_blocks(arch: Architecture, theta: Any, data: dict, ops: Ops, physic
                         data["t_u"], data["p_u"], data.get("start_u"))
         blocks.append(_flat_jacobian(j_u, ops))
     if problem.t_f.size:
-        j_f = per_point(lambda ps, t, p, s: w_f * physics_terms(arch, ps, t, p, ops, physics, s),
+        j_f = per_point(lambda ps, t, p, s: weighted(w_f, physics_terms(arch, ps, t, p, ops, physics, s), ops),
                         data["t_f"], data["p_f"], data.get("start_f"))
         blocks.append(_flat_jacobian(j_f, ops))
     return blocks[0] if len(blocks) == 1 else ops.concat(blocks, 0)

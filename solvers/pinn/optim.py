@@ -24,7 +24,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import minimize
 
-__all__ = ["OptimResult", "Progress", "lbfgs", "levenberg_marquardt"]
+__all__ = ["OptimResult", "Progress", "gauss_newton_cg", "lbfgs", "levenberg_marquardt"]
 
 # progress(iteration, loss) -> None; called after every iteration
 Progress = Callable[[int, float], None] | None
@@ -113,6 +113,102 @@ def levenberg_marquardt(
         if progress is not None:
             progress(iteration, loss)
     return OptimResult(theta, loss, iteration, f"Levenberg-Marquardt: {message}", success)
+
+
+def _pcg(product: Callable[[np.ndarray], np.ndarray], b: np.ndarray, inverse_diagonal: np.ndarray,
+         max_iterations: int, tol: float) -> tuple[np.ndarray, int]:
+    """x ~ A^-1 b by conjugate gradients preconditioned with diag(A)^-1 (`inverse_diagonal`), from
+    x = 0, for a symmetric positive definite A given by `product(v) = A v`; stops after
+    `max_iterations` products or when ||A x - b|| <= tol ||b||. Returns x and the products done."""
+    x = np.zeros_like(b)
+    res = b.copy()
+    z = inverse_diagonal * res
+    p = z.copy()
+    rz = float(res @ z)
+    bound = tol * float(np.linalg.norm(b))
+    for k in range(1, max_iterations + 1):
+        Ap = product(p)
+        curvature = float(p @ Ap)
+        if curvature <= 0.0:  # rounding on a (numerically) singular direction: keep what we have
+            return x, k
+        alpha = rz / curvature
+        x += alpha * p
+        res -= alpha * Ap
+        if float(np.linalg.norm(res)) <= bound:
+            return x, k
+        z = inverse_diagonal * res
+        rz_new = float(res @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return x, max_iterations
+
+
+def gauss_newton_cg(
+    residuals: Callable[[np.ndarray], np.ndarray], jvp: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    vjp: Callable[[np.ndarray, np.ndarray], np.ndarray], diagonal: Callable[[np.ndarray], np.ndarray],
+    theta0: np.ndarray, *, max_iterations: int, deadline: float, cg_iterations: int, cg_tol: float,
+    progress: Progress = None, mu0: float = 1e-3, gtol: float = 1e-30,
+) -> OptimResult:
+    """Minimise ||r(theta)||^2 by a matrix-free Levenberg-Marquardt: the step of
+    `levenberg_marquardt` (Moré's scaling D, Nielsen's damping update) with the damped Gauss-Newton
+    system (J^T J + mu D) h = -J^T r solved inexactly by Jacobi-preconditioned conjugate gradients
+    on Jacobian-vector products, never forming J^T J.
+
+    residuals: theta (P,) -> r (N,); jvp: (theta, v (P,)) -> J v (N,); vjp: (theta, u (N,)) ->
+    J^T u (P,); diagonal: theta -> diag(J^T J) (P,), evaluated once, at theta0 (D, and the
+    preconditioner diag(J^T J) + mu D with that D); all float64 numpy. Each iteration runs at most
+    `cg_iterations` CG steps (each one jvp and one vjp), stopping when the system's residual is
+    below `cg_tol` of its right-hand side, then evaluates r once; the predicted reduction is
+    -2 g.h - ||J h||^2 (one more jvp). Stops like `levenberg_marquardt`: after `max_iterations`,
+    when the next iteration would end after `deadline`, when the gradient is negligible, or when
+    the damping diverges."""
+    theta = np.array(theta0, dtype=np.float64)
+    r = residuals(theta)
+    loss = float(r @ r)
+    if not np.isfinite(loss):
+        return OptimResult(theta, loss, 0, "Gauss-Newton-CG: non-finite initial loss", False)
+    diag = np.asarray(diagonal(theta), np.float64)
+    diag = np.maximum(diag, 1e-12 * max(float(diag.max()), 1e-300))
+    g = vjp(theta, r)
+    nu, mu = 2.0, mu0
+    last = 0.0  # seconds of the last iteration
+    products = 0
+    message, success, iteration = f"reached max_iterations={max_iterations}", True, 0
+    while iteration < max_iterations:
+        start = time.perf_counter()
+        if start + last > deadline:
+            message = "reached the time budget"
+            break
+        if np.max(np.abs(g)) <= gtol:
+            message = "gradient below gtol"
+            break
+        iteration += 1
+
+        def product(v: np.ndarray, point: np.ndarray = theta, damping: float = mu) -> np.ndarray:
+            return vjp(point, jvp(point, v)) + damping * diag * v
+
+        h, done = _pcg(product, -g, 1.0 / ((1.0 + mu) * diag), cg_iterations, cg_tol)
+        products += done + 1
+        Jh = jvp(theta, h)
+        predicted = -2.0 * float(g @ h) - float(Jh @ Jh)
+        r_new = residuals(theta + h)
+        loss_new = float(r_new @ r_new)
+        rho = (loss - loss_new) / predicted if predicted > 0 else -1.0
+        if np.isfinite(loss_new) and rho > 0:
+            theta, r, loss = theta + h, r_new, loss_new
+            g = vjp(theta, r)
+            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+            nu = 2.0
+        else:
+            mu, nu = mu * nu, 2.0 * nu
+            if mu > 1e20:
+                message, success = "damping diverged (no descent step found)", loss < np.inf
+                break
+        last = time.perf_counter() - start
+        if progress is not None:
+            progress(iteration, loss)
+    return OptimResult(theta, loss, iteration,
+                       f"Gauss-Newton-CG: {message} ({products} Jacobian products)", success)
 
 
 class _Stop(Exception):

@@ -19,7 +19,7 @@ from solvers.pinn.config import PinnConfig
 from systems.cases import Case, Observations, standard_grid
 
 __all__ = ["PhaseEdges", "Problem", "forward_problem", "identification_p_range", "identification_problem",
-           "observations_within", "phase_edges", "phase_problem", "window_edges", "window_problem"]
+           "observations_within", "phase_edges", "phase_problem", "residual_weights", "window_edges", "window_problem"]
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,8 @@ class Problem:
     m, d: the physics, (n,) p.u. (None in identification, where they are trained).
     A time-marching window's problem has times since the window's start and each point's start
     state: start_u (n_u, 2, n) and start_f (n_f, 2, n), rows (delta rad, omega rad/s) of every
-    machine at the window's start for that point's P1 (None for a single network)."""
+    machine at the window's start for that point's P1 (None for a single network).
+    `residual_weights` (r,): a factor for each residual column (None: 1), see `residual_weights`."""
 
     t_u: np.ndarray
     p_u: np.ndarray
@@ -46,24 +47,39 @@ class Problem:
     d: tuple[float, ...] | None = None
     start_u: np.ndarray | None = None
     start_f: np.ndarray | None = None
+    residual_weights: tuple[float, ...] | None = None
 
     @property
-    def weights(self) -> tuple[float, float]:
-        """(weight of each data residual, weight of each physics residual)."""
+    def weights(self) -> tuple[float, float | np.ndarray]:
+        """(weight of each data residual, weight of each physics residual): a number, or with
+        `residual_weights` one weight per residual column, (r,)."""
+        w_f = float(np.sqrt(self.loss_scale / max(self.t_f.size, 1)))
         return (float(np.sqrt(self.loss_scale / max(self.t_u.size, 1))),
-                float(np.sqrt(self.loss_scale / max(self.t_f.size, 1))))
+                w_f if self.residual_weights is None else w_f * np.asarray(self.residual_weights))
 
     def loss(self, data_residuals: np.ndarray, physics_residuals: np.ndarray) -> float:
         """The loss (numpy reference) from data residuals (n_u, k) and physics residuals (n_f, r)."""
         w_u, w_f = self.weights
-        return float(w_u ** 2 * np.sum(data_residuals ** 2) + w_f ** 2 * np.sum(physics_residuals ** 2))
+        return float(w_u ** 2 * np.sum(data_residuals ** 2) + np.sum(w_f ** 2 * physics_residuals ** 2))
 
     @property
     def signature(self) -> tuple:
         """What a compiled training function depends on besides the arrays (which it takes as
         arguments): the sizes, the loss weights and whether points carry start states. Problems
         of one signature (the windows of a time-marching fit) share one compilation."""
-        return (self.t_u.size, self.t_f.size, self.targets.shape[1], self.weights, self.start_f is not None)
+        return (self.t_u.size, self.t_f.size, self.targets.shape[1], self.loss_scale, self.residual_weights,
+                self.start_f is not None)
+
+
+def residual_weights(config: PinnConfig, case: Case) -> tuple[float, ...] | None:
+    """The factors of the swing residuals' columns (`Problem.residual_weights`) for
+    `config.residual_units`: None for "power" (p.u., as `network.swing_residuals` gives them);
+    1 / m_k for "acceleration", so that machine k's residual is in rad/s^2 (for two outputs the
+    f_omega columns, already rad/s, keep 1)."""
+    if config.residual_units == "power":
+        return None
+    inverse = tuple(1.0 / float(m) for m in case.m)
+    return inverse if config.outputs == 1 else (1.0,) * case.n + inverse
 
 
 def latin_hypercube(case_t: tuple[float, float], p_range: tuple[float, float], n: int, seed: int
@@ -97,7 +113,7 @@ def forward_problem(config: PinnConfig, case: Case) -> Problem:
     return Problem(
         t_u=t_cand[pick], p_u=p_cand[pick], targets=d_cand[pick],
         t_f=np.concatenate([t_f, t_cand[pick]]), p_f=np.concatenate([p_f, p_cand[pick]]),
-        loss_scale=config.loss_scale, m=case.m, d=case.d,
+        loss_scale=config.loss_scale, m=case.m, d=case.d, residual_weights=residual_weights(config, case),
     )
 
 
@@ -175,7 +191,7 @@ def window_problem(config: PinnConfig, case: Case, edges: np.ndarray, w: int) ->
         targets = np.where(on_max[:, None], delta_edges[1], delta_edges[0])
     return Problem(
         t_u=t_u, p_u=p_u, targets=targets, t_f=np.concatenate([t_f, t_u]), p_f=np.concatenate([p_f, p_u]),
-        loss_scale=config.loss_scale, m=case.m, d=case.d,
+        loss_scale=config.loss_scale, m=case.m, d=case.d, residual_weights=residual_weights(config, case),
     )
 
 

@@ -39,6 +39,7 @@ from solvers.pinn.network import (
     physics_parameters,
     start_columns,
     swing_residuals,
+    weighted,
 )
 from solvers.pinn.problems import Problem
 
@@ -127,7 +128,8 @@ def _residual_blocks(arch: Architecture, params: list[torch.Tensor], data: dict,
             m, d = torch.exp(log_md[:, :n]), torch.exp(log_md[:, n:])
         else:
             m, d = physics_parameters(arch, params, physics, ops, p)
-        blocks.append((w_f * swing_residuals(outputs, arch.outputs, t, p, ops, physics, m, d), passes, log_md))
+        blocks.append((weighted(w_f, swing_residuals(outputs, arch.outputs, t, p, ops, physics, m, d), ops), passes,
+                       log_md))
     return blocks
 
 

@@ -208,9 +208,13 @@ class TorchPinn(PinnSolver):
     SCHEMA = TorchOptions
 
     def _check_options(self) -> None:
-        """The rule that depends on the machine: a "cuda" device must exist (checked when the
-        adapter is built, not when training starts, so that a run refuses it before measuring)."""
+        """The optimiser must be one this backend trains with, and (the rule that depends on the
+        machine) a "cuda" device must exist: checked when the adapter is built, not when training
+        starts, so that a run refuses them before measuring."""
         super()._check_options()
+        if self.pinn_config.optimizer == "gn-cg":
+            raise ValueError(f"{self.name}: option optimizer must be 'lm' or 'lbfgs' (the matrix-free "
+                             "'gn-cg' needs Jacobian-vector products, which jax-pinn provides), got 'gn-cg'")
         if self.options["device"] == "cuda" and not torch.cuda.is_available():
             raise ValueError(f"{self.name}: option device must be 'cpu' on this machine (torch "
                              f"{torch.__version__} finds no CUDA device to train case {self.case.name} on), "
