@@ -18,7 +18,7 @@ from systems.cases import Case, Observations
 T = TypeVar("T")
 
 __all__ = ["SPARSE_FROM_MACHINES", "TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "NetworkForm", "ObservationLayout",
-           "PointGroups", "PointsByP1", "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares",
+           "PointGroups", "PointsByP1", "StackedStates", "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares",
            "keeps_network_sparse", "points_by_p1", "run_batch", "search_boxes", "which_p1"]
 
 # The form of the network an adapter integrates: "reduced" (Kron-reduced to the machines, the dense
@@ -191,6 +191,28 @@ class PointsByP1:
     def _solve_points(self: _Solves, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (n_s, n), at the pairs (t[i] s, P1[i] p.u.): `points_by_p1`."""
         return points_by_p1(self._solve, t, P1, self.case.n)
+
+
+class _States(Protocol):
+    def _states(self, case: Case, y0: np.ndarray, P: np.ndarray, t: np.ndarray, failed: str) -> np.ndarray: ...
+
+
+class StackedStates:
+    """Mixin of the adapters that integrate a batch of trajectories from given states in one call,
+    `_states(case, y0 (n_b, 2n), P (n_b, n), t, failed) -> y (n_b, len(t), 2n)` (`failed` names
+    the scenario values in a SolveError): a step case's trajectories from its initial state, and
+    one phase of a fault case (`solvers.fault_phases.PhaseIntegrator`)."""
+
+    def _integrate(self: _States, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
+        y0 = np.tile(np.array(case.delta0 + case.omega0), (P1.size, 1))
+        y = self._states(case, y0, case.powers(P1), t, which_p1(P1))
+        return y[..., :case.n], y[..., case.n:]
+
+    def _phase(self: _States, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
+        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
+        return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 
 
 class ObservationLayout(NamedTuple):

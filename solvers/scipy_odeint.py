@@ -12,11 +12,11 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     PointsByP1,
+    StackedStates,
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
     run_batch,
-    which_p1,
 )
 from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
@@ -33,7 +33,7 @@ def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: 
     return np.concatenate([state[:, n:], acc], axis=1).ravel()
 
 
-class ScipyOdeint(PointsByP1, AbstractSolver):
+class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
     """LSODA (Adams / BDF with automatic switching, compiled Fortran) on one system of
     2n * len(P1) states: the Python right-hand side is called once per step for every trajectory,
     which is what makes a batch cheap. Each trajectory's states are contiguous, so LSODA's stiff
@@ -78,17 +78,6 @@ class ScipyOdeint(PointsByP1, AbstractSolver):
                 raise SolveError(f"{self.name}: integration failed at {failed}: {info['message']}")
             y = y[grid.size - t.size:]  # drop the prepended t = 0
         return y.reshape(t.size, n_b, 2 * n).transpose(1, 0, 2)
-
-    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
-        y0 = np.tile(np.array(case.delta0 + case.omega0), (P1.size, 1))
-        y = self._states(case, y0, case.powers(P1), t, which_p1(P1))
-        return y[..., :case.n], y[..., case.n:]
-
-    def _phase(self, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
-        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
-        P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
-        return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.case.fault is not None:

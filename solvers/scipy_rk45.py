@@ -12,10 +12,10 @@ from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     PointsByP1,
+    StackedStates,
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
-    which_p1,
 )
 from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
@@ -45,7 +45,7 @@ class RK45Options(ToleranceOptions):
     batch: Literal["loop", "stacked"] = "loop"
 
 
-class ScipyRK45(PointsByP1, AbstractSolver):
+class ScipyRK45(StackedStates, PointsByP1, AbstractSolver):
     """Adaptive explicit RK45 from scipy, one of two batch modes over P1.
 
     Options: rtol, atol (defaults 1e-3, 1e-6: MATLAB ode45's, which made the paper's data);
@@ -87,18 +87,6 @@ class ScipyRK45(PointsByP1, AbstractSolver):
             return sol.y
 
         return stacked_states(integrate, case, t, P, y0)
-
-    def _integrate(self, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(delta, omega), each (len(P1), len(t), n), at sorted unique times t, all P1 in one
-        stacked system."""
-        y0 = np.tile(np.array(case.delta0 + case.omega0), (P1.size, 1))
-        y = self._states(case, y0, case.powers(P1), t, which_p1(P1))
-        return y[..., :case.n], y[..., case.n:]
-
-    def _phase(self, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
-        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
-        P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
-        return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         stacked = self.options["batch"] == "stacked"
