@@ -149,7 +149,25 @@ def _lu_solve(LU, piv, b, n):
         b[i] = acc / LU[i, i]
 
 
-for _name in ("network", "_lu_factor", "_lu_solve"):
+@njit(cache=True, error_model="numpy")
+def _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col):
+    """The states of one step [t0, t1] (s, length h) at the query times ts[order[i_out:]] up to t1,
+    by cubic Hermite interpolation (delta with derivatives omega, omega with derivatives a, each
+    (n,) at both ends) into out[:, col, order[i]]; returns the index of the next time left."""
+    n = delta0.size
+    while i_out < order.size and ts[order[i_out]] <= t1:
+        s = (ts[order[i_out]] - t0) / h
+        h00, h10 = (1 + 2 * s) * (1 - s) ** 2, h * s * (1 - s) ** 2
+        h01, h11 = s * s * (3 - 2 * s), h * s * s * (s - 1)
+        o = order[i_out]
+        for k in range(n):
+            out[0, col, o, k] = h00 * delta0[k] + h10 * omega0[k] + h01 * delta1[k] + h11 * omega1[k]
+            out[1, col, o, k] = h00 * omega0[k] + h10 * a0[k] + h01 * omega1[k] + h11 * a1[k]
+        i_out += 1
+    return i_out
+
+
+for _name in ("network", "_lu_factor", "_lu_solve", "_output"):
     _name_for_cache(globals()[_name], _name)
 
 
@@ -232,15 +250,7 @@ def _trajectory(ts, order, p1, system, coupled, options, out, col, stats):
         network(delta1, pe, A, False, system, n, coupled, scratch)
         for k in range(n):
             a1[k] = (P[k] - d[k] * omega1[k] - pe[k]) / m[k]
-        while i_out < n_t and ts[order[i_out]] <= t1:
-            s = (ts[order[i_out]] - t0) / h
-            h00, h10 = (1 + 2 * s) * (1 - s) ** 2, h * s * (1 - s) ** 2
-            h01, h11 = s * s * (3 - 2 * s), h * s * s * (s - 1)
-            o = order[i_out]
-            for k in range(n):
-                out[0, col, o, k] = h00 * delta0[k] + h10 * omega0[k] + h01 * delta1[k] + h11 * omega1[k]
-                out[1, col, o, k] = h00 * omega0[k] + h10 * a0[k] + h01 * omega1[k] + h11 * a1[k]
-            i_out += 1
+        i_out = _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
         for k in range(n):
             delta0[k], omega0[k], a0[k] = delta1[k], omega1[k], a1[k]
     stats[0], stats[1], stats[2] = n_steps, iterations, factorisations

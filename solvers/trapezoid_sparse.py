@@ -54,7 +54,7 @@ from solvers.numba_kernels import (
     system_array,
 )
 from solvers.numba_sparse import sparse_power
-from solvers.trapezoid_kernels import NEWTON_FAILED, SINGULAR
+from solvers.trapezoid_kernels import NEWTON_FAILED, SINGULAR, _output
 from systems.cases import Case
 from systems.sparse_network import LUFactors, lu_factors
 
@@ -191,15 +191,7 @@ def _trajectory(ts, order, p1, system, net, options, out, col, stats):
         _power(delta1, pe, slope, system, net, n, scratch, work)
         for k in range(n):
             a1[k] = (P[k] - d[k] * omega1[k] - pe[k]) / m[k]
-        while i_out < n_t and ts[order[i_out]] <= t1:
-            s = (ts[order[i_out]] - t0) / h
-            h00, h10 = (1 + 2 * s) * (1 - s) ** 2, h * s * (1 - s) ** 2
-            h01, h11 = s * s * (3 - 2 * s), h * s * s * (s - 1)
-            o = order[i_out]
-            for k in range(n):
-                out[0, col, o, k] = h00 * delta0[k] + h10 * omega0[k] + h01 * delta1[k] + h11 * omega1[k]
-                out[1, col, o, k] = h00 * omega0[k] + h10 * a0[k] + h01 * omega1[k] + h11 * a1[k]
-            i_out += 1
+        i_out = _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
         for k in range(n):
             delta0[k], omega0[k], a0[k] = delta1[k], omega1[k], a1[k]
     stats[0], stats[1], stats[2] = n_steps, iterations, 0
