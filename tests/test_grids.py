@@ -177,58 +177,78 @@ ANDES_STEP = 0.01
 ANDES_TOL = {"wscc9": (1.7e-4, 1.7e-3), "kundur4": (3.7e-4, 2.2e-3), "ieee39": (4.1e-4, 3.7e-3)}
 
 
-def andes_gencls(andes, name):
-    """ANDES system of case `name`, set up: its solved pandapower net exported as MATPOWER data
-    (pandapower's to_mpc) and read by ANDES, one GENCLS machine (M = 2H, D = H on its rating: our
-    d = 0.5 m) on each machine bus, GENCLS k = machine k. ANDES solves its own power flow and builds
-    its own network; its PQ loads become constant impedances in time domain, as ours."""
+def andes_buses(net, buses) -> list[int]:
+    """ANDES's bus numbers (1.., pandapower's internal order, as `to_mpc` numbers them) of the solved
+    `net`'s buses named `buses` (the source's numbers)."""
+    return (net._pd2ppc_lookups["bus"][bus_indices(net, buses)] + 1).tolist()
+
+
+def andes_gencls(andes, name, *, net=None, setup=True):
+    """ANDES system of case `name`, set up (unless `setup` is False: devices can still be added): its
+    solved pandapower net (`net`, else built anew) exported as MATPOWER data (pandapower's to_mpc) and
+    read by ANDES, one GENCLS machine (M = 2H, D = H on its rating: our d = 0.5 m) on each machine
+    bus, GENCLS k = machine k. ANDES solves its own power flow and builds its own network; its PQ
+    loads become constant impedances in time domain, as ours."""
     from andes.io.matpower import mpc2system
     from pandapower.converter.matpower import to_mpc
 
-    net = NETS[name]()
+    net = NETS[name]() if net is None else net
     mpc = to_mpc(net)["mpc"]  # buses numbered 1.. in pandapower's internal order
     ss = andes.System(default_config=True, no_output=True)
     assert mpc2system(mpc, ss)
-    mpc_buses = net._pd2ppc_lookups["bus"][bus_indices(net, MACHINE_BUSES[name])] + 1
     gen_buses = mpc["gen"][:, 0].astype(int).tolist()  # mpc2system numbers the generators 1.. in this order
-    for H, xd, bus in zip(*ANDES_MACHINES[name][:2], mpc_buses.tolist()):
+    for H, xd, bus in zip(*ANDES_MACHINES[name][:2], andes_buses(net, MACHINE_BUSES[name])):
         ss.add("GENCLS", {"bus": bus, "gen": gen_buses.index(bus) + 1, "Sn": ANDES_MACHINES[name][2],
                           "Vn": ss.Bus.get("Vn", bus), "M": 2 * H, "D": H, "xd1": xd, "ra": 0.0})
-    ss.setup()
+    if setup:
+        ss.setup()
     return ss
 
 
-def andes_errors(andes, name: str, step: float) -> tuple[float, float]:
-    """The largest difference (delta rad, omega rad/s) between ANDES's implicit trapezoid at `step`
-    (s) and ours, DOP853 to 1e-10, after generator 1's torque steps +10 % at t = 0, over 10 s."""
-    ss = andes_gencls(andes, name)
+def andes_run(ss, case, step: float, t_final: float, at_start=None):
+    """ANDES's implicit trapezoid on `ss` (an `andes_gencls` system of `case`, set up) at `step` (s)
+    over [0, t_final] s, from ANDES's power flow, checked to be `case`'s equilibrium; `at_start(ss)`,
+    if given, runs after ANDES's initialisation and before its first step. Returns t (k,) s, delta
+    (k, n) rad and omega (k, n) rad/s (the deviation from synchronous speed), machine k = GENCLS k."""
     # A power imbalance left at t = 0 drifts the whole system (no infinite bus): the flow to 1e-10 p.u.
     ss.PFlow.config.tol = 1e-10
     assert ss.PFlow.run()
     # ANDES's Newton stops a step once its update is below tol (default 1e-4); 1e-9 solves each step's
     # equations, so that the error is the rule's (with the default, kundur4's delta error stops
     # quartering below a step of 0.005 s).
-    ss.TDS.config.tf, ss.TDS.config.tstep, ss.TDS.config.tol, ss.TDS.config.no_tqdm = 10.0, step, 1e-9, 1
+    ss.TDS.config.tf, ss.TDS.config.tstep, ss.TDS.config.tol, ss.TDS.config.no_tqdm = t_final, step, 1e-9, 1
     ss.TDS.init()
-    case = CASES[name]
-    E, G, B, delta0, p_m, m, d = arrays(case)
     # ANDES adds 1e-8 p.u. to every branch's r and x (in its Line's admittance): its flow differs from
     # ours by up to 6e-7 rad and 8e-6 p.u. (kundur4's), 1e-11 without that.
-    np.testing.assert_allclose(ss.GENCLS.delta.v, delta0, rtol=0, atol=2e-6)
-    np.testing.assert_allclose(ss.GENCLS.tm0.v, p_m, rtol=0, atol=2e-5)
-    # The torque step at t = 0: the set point tm0, the algebraic torque tm (tm = tm0) in ANDES's state,
-    # and the right-hand side at t = 0 recomputed, which the first trapezoid step averages with the one
-    # at t = h (TDS.init computed it with the old torque).
-    ss.GENCLS.tm0.v[0] *= 1.1
-    ss.dae.y[ss.GENCLS.tm.a[0]] = ss.GENCLS.tm0.v[0]
-    ss.vars_to_models()
-    ss.TDS.fg_update(ss.exist.pflow_tds)
+    np.testing.assert_allclose(ss.GENCLS.delta.v, case.delta0, rtol=0, atol=2e-6)
+    np.testing.assert_allclose(ss.GENCLS.tm0.v, case.p_m, rtol=0, atol=2e-5)
+    if at_start is not None:
+        at_start(ss)
     assert ss.TDS.run(no_summary=True)
-    t = ss.dae.ts.t
-    assert t[-1] == pytest.approx(10.0)
+    t = np.asarray(ss.dae.ts.t)
+    assert t[-1] == pytest.approx(t_final)
+    delta = ss.dae.ts.x[:, ss.GENCLS.delta.a]
+    omega = (ss.dae.ts.x[:, ss.GENCLS.omega.a] - 1.0) * 2 * np.pi * 60.0  # p.u. -> rad/s deviation
+    return t, delta, omega
+
+
+def andes_errors(andes, name: str, step: float) -> tuple[float, float]:
+    """The largest difference (delta rad, omega rad/s) between ANDES's implicit trapezoid at `step`
+    (s) and ours, DOP853 to 1e-10, after generator 1's torque steps +10 % at t = 0, over 10 s."""
+    case = CASES[name]
+    E, G, B, delta0, p_m, m, d = arrays(case)
+
+    def torque_step(ss):
+        # The torque step at t = 0: the set point tm0, the algebraic torque tm (tm = tm0) in ANDES's
+        # state, and the right-hand side at t = 0 recomputed, which the first trapezoid step averages
+        # with the one at t = h (TDS.init computed it with the old torque).
+        ss.GENCLS.tm0.v[0] *= 1.1
+        ss.dae.y[ss.GENCLS.tm.a[0]] = ss.GENCLS.tm0.v[0]
+        ss.vars_to_models()
+        ss.TDS.fg_update(ss.exist.pflow_tds)
+
+    t, delta_andes, omega_andes = andes_run(andes_gencls(andes, name), case, step, 10.0, at_start=torque_step)
     n = case.n
-    delta_andes = ss.dae.ts.x[:, ss.GENCLS.delta.a]
-    omega_andes = (ss.dae.ts.x[:, ss.GENCLS.omega.a] - 1.0) * 2 * np.pi * 60.0  # p.u. -> rad/s deviation
     P = case.powers(np.array([1.1 * p_m[0]]))[0]
 
     def rhs(_t, y):
