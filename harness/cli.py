@@ -57,13 +57,13 @@ def _parser() -> argparse.ArgumentParser:
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
     run.add_argument("--suite", nargs="+", default=None, metavar="NAME",
-                     help=f"suites to run (default: all but scaling and cct): {', '.join(_suite_names())}; "
+                     help=f"suites to run (default: all but scaling): {', '.join(_suite_names())}; "
                           "scaling measures cost, memory and accuracy against the number of machines, each unit in "
                           "a process of its own under --unit-seconds and --unit-memory, on the scaling cases "
                           "(wscc9 ... case2869pegase) unless --case names others; cct finds each fault case's "
-                          "critical clearing time with every adapter that integrates fault cases, alone on the "
-                          "12 fault cases ('<case>-<contingency>'; --quick: wscc9's and kundur4's) unless --case "
-                          "names others")
+                          "critical clearing time with every adapter that integrates fault cases (fault cases "
+                          "only), when run alone on the 12 fault cases ('<case>-<contingency>'; --quick: "
+                          "wscc9's and kundur4's) unless --case names others")
     run.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                      help=f"adapters to run (default: every registered one): {', '.join(SOLVERS)}")
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
@@ -75,8 +75,9 @@ def _parser() -> argparse.ArgumentParser:
                           "read as JSON where it is, e.g. --option optimizer=lbfgs --option max_iterations=100); "
                           "the rows' variant shows it")
     run.add_argument("--case", nargs="+", default=None, metavar="NAME",
-                     help="cases (default: smib-inference and the multi-machine wscc9, kundur4, ieee39; --quick: "
-                          "smib-inference and wscc9); identification of a SMIB case uses smib-identification with "
+                     help="cases (default: smib-inference, the multi-machine wscc9, kundur4, ieee39 and the fault "
+                          "cases wscc9-bus8-line8-9, kundur4-bus7-line7-8a; --quick: smib-inference, wscc9 and "
+                          "wscc9-bus8-line8-9); identification of a SMIB case uses smib-identification with "
                           "the (m, d) pairs, of a multi-machine case the case's own parameters")
     size = run.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",

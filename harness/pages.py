@@ -13,6 +13,7 @@ import os
 import shutil
 from pathlib import Path
 
+from harness.cct_table import CCT_HEADLINE, cct_headline
 from harness.labels import Labels
 from harness.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
 from harness.sections import (
@@ -39,7 +40,8 @@ def _source(results: Path | str, start: Path | str = ".") -> str:
 
 
 def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: str = "###") -> str:
-    """The run's line and wall time, the verdict table (verdict suite) if the run has one, then per
+    """The run's line and wall time, the verdict table (verdict suite) if the run has one, the CCT
+    headline (`harness.cct_table.cct_headline`) if the run has cct rows, then per
     case a heading of `level` that links its page (`pages`: the pages' folder relative to where the
     block is read, "" beside them), the options its names leave out and, only in a run without
     verdicts, the latency suite's single-timing sentences; `source` names the rows."""
@@ -51,6 +53,10 @@ def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: 
         out.append(f"{level} Verdicts at matched accuracy\n\n{RULE} Every query: the case pages.\n\n"
                    f"{Labels(frames).table(head).to_markdown(index=False)}\n\n"
                    f"![verdicts]({prefix}figures/verdicts.png)\n\n")
+    cct = cct_headline(frames)
+    if not cct.empty:
+        out.append(f"{level} Critical clearing time\n\n{CCT_HEADLINE}. Every search: the fault cases' pages.\n\n"
+                   f"{Labels(frames).table(cct).to_markdown(index=False)}\n\n")
     for name, own in case_sections(frames):
         # with verdicts, a case's single-timing sentences stay on its page (they are not verdicts)
         body = Labels(own).note() + "\n\n" if head is not None else verdict_markdown(own, Labels(own), level=None)

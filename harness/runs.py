@@ -56,6 +56,13 @@ class SolverSpec:
 PAPER_PAIR: tuple[float, float] = (SMIB_IDENTIFICATION.m[0], SMIB_IDENTIFICATION.d[0])
 
 
+# The fault cases of `make bench` (and, wscc9's, of the quick run): every suite and the CCT on the
+# textbook contingencies of wscc9 and kundur4; the ten of ieee39 run in `swingbench run --suite cct`.
+BENCH_FAULT_CASES = (*FAULT_CASES["wscc9"], *FAULT_CASES["kundur4"])
+# Levenberg-Marquardt iterations per window of the fault PINNs (`fault-marching`) in `make bench`
+# (the config's own budget, 2000 a window within 300 s, is what --full and a run naming it use).
+FAULT_ITERATIONS = 150
+
 # The scaling suite's cases, by number of machines: the published systems, then pandapower's
 # MATPOWER / PGLib cases with machine data by rule (systems.family).
 SCALING_CASES = ("wscc9", "ieee39", "case118", "case300", "case1354pegase", "case2869pegase")
@@ -125,7 +132,7 @@ class Settings:
     omit_marks: tuple[str, ...] = ()
     cache_dir: Path | None = Path(".cache/models")
     retrain: bool = False
-    cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES)
+    cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES, *BENCH_FAULT_CASES)
     case_pinn_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     network_noise_levels: tuple[float, ...] = (0.0,)
     network_identify_cases: tuple[str, ...] = NETWORK_CASES
@@ -136,20 +143,27 @@ class Settings:
     scaling_unit_limits: Limits = SCALING_UNIT_LIMITS
     scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
     verdict_pinns: tuple[tuple[str, tuple[str, ...], tuple[tuple[str, Any], ...]], ...] = (
-        ("jax-pinn", ("default", "marching"), ()),)
+        ("jax-pinn", ("default", "marching", "fault-marching"), ()),)
     verdict_rtols: tuple[float, ...] = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8, 1e-9, 1e-10)
     verdict_seeds: tuple[int, ...] = (0, 1, 2)
     verdict_rounds: int = 2
     verdict_pairs: int = 4
     verdict_gate: float = 1e-2
     cct_cases: tuple[str, ...] = tuple(name for names in FAULT_CASES.values() for name in names)
-    cct_surrogate_step_s: float = 1e-3
+    cct_surrogate_step_s: float = 1e-2
 
     def verdict_pinn(self, spec: SolverSpec) -> bool:
         """Whether the verdict suite measures `spec`: its adapter and config are those of an entry
         of `verdict_pinns` and its options include that entry's."""
-        options = dict(spec.options)
-        return any(spec.solver == solver and spec.config in configs and all(options.get(k) == v for k, v in wanted)
+        return self._verdict(spec.solver, spec.config, dict(spec.options))
+
+    def verdict_model(self, solver: AbstractSolver) -> bool:
+        """`verdict_pinn` of a built adapter (its name, config and options): whether a suite
+        measures each seed of `verdict_seeds` of it."""
+        return self._verdict(solver.name, solver.config, solver.options)
+
+    def _verdict(self, name: str, config: str, options: dict) -> bool:
+        return any(name == solver and config in configs and all(options.get(k) == v for k, v in wanted)
                    for solver, configs, wanted in self.verdict_pinns)
 
     def sweep_rtols(self, compiled: bool, case: Case) -> tuple[float, ...]:
@@ -180,13 +194,16 @@ class Settings:
 QUICK = Settings(
     name="quick", latency_budget_s=0.1, min_repeats=3, max_call_s=0.5, max_query_s=5.0, seeds=(0,),
     pinn_options={"max_iterations": 150, "id_max_iterations": 150}, throughput_sizes=(1, 100),
-    case_pinn_options={"wscc9": {"max_iterations": 10, "max_seconds": None, "id_max_iterations": 100}},
-    t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9"), verdict_seeds=(0,),
+    case_pinn_options={"wscc9": {"max_iterations": 10, "max_seconds": None, "id_max_iterations": 100},
+                       FAULT_CASES["wscc9"][0]: {"max_iterations": 10, "max_seconds": None}},
+    t1_values_s=(1.0, 10.0, 20.0), points_batch=1000, cases=("smib-inference", "wscc9", FAULT_CASES["wscc9"][0]),
+    verdict_seeds=(0,),
     verdict_rtols=(1e-3, 1e-5, 1e-7, 1e-9), omit_marks=(ABLATION, LARGE_SYSTEMS, SWEEP_POINT),
     network_identify_cases=(), pairs=IDENTIFICATION_PAIRS[4:5], noise_levels=(0.0,), wp_rtols=(1e-3, 1e-6, 1e-9),
-    network_wp_rtols=(1e-3, 1e-6), cct_cases=(*FAULT_CASES["wscc9"], *FAULT_CASES["kundur4"]), cct_surrogate_step_s=1e-2,
+    network_wp_rtols=(1e-3, 1e-6), cct_cases=(*FAULT_CASES["wscc9"], *FAULT_CASES["kundur4"]),
 )
-# make bench: every suite on the SMIB and the three multi-machine cases within about an hour on 2
+# make bench: every suite on the SMIB, the three multi-machine cases and the fault cases of wscc9 and
+# kundur4 (BENCH_FAULT_CASES) within about an hour and a half on 2
 # cores (the measured durations are in docs/notebook.md). The cuts that buy it: one seed (--full:
 # five); the configs marked as ablations (the two-output PINNs) and those for large systems only when
 # named (--config); 0.25 s of repeats per timing, at least 3 (a call of 1 ms is timed ~250 times,
@@ -196,7 +213,7 @@ QUICK = Settings(
 # compare with them); the SMIB identified at the paper's own case only (m = 0.25, d = 0.15, also from
 # the paper's ode45 data), at both noise levels. Multi-machine cases: PINNs (their configs made for
 # networks) train within the stated wall-clock budget per case (the 5- and 10-minute training
-# targets are measured apart, see the README); identification noise-free, on wscc9 only (each
+# targets are measured apart, see the README), on the fault cases FAULT_ITERATIONS a window; identification noise-free, on wscc9 only (each
 # classical adapter takes 1-80 s there; on kundur4 and ieee39 minutes more per adapter). --full runs
 # everything: every seed and config, the paper's case and the 10 pairs, both noise levels, the
 # identification of every multi-machine case, every sweep, PINNs within their configs' own budgets.
@@ -209,8 +226,9 @@ DEFAULT = Settings(
     pairs=(PAPER_PAIR,),
     skip_identify_marks=(ABLATION,),
     network_wp_rtols=(1e-3, 1e-6, 1e-9),
-    case_pinn_options={case: {"max_iterations": iterations, "max_seconds": None, "id_max_iterations": 600}
+    case_pinn_options={**{case: {"max_iterations": iterations, "max_seconds": None, "id_max_iterations": 600}
                           for case, iterations in (("wscc9", 100), ("kundur4", 100), ("ieee39", 60))},
+                       **{case: {"max_iterations": FAULT_ITERATIONS, "max_seconds": None} for case in BENCH_FAULT_CASES}},
     network_identify_cases=("wscc9",),
 )
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0,

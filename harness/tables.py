@@ -24,11 +24,12 @@ from harness.analysis import (
     ok,
     trained,
 )
+from harness.cct_table import CCT_TITLE, cct_table
 from harness.paper import paper_table
 from harness.verdict import ladder_table
 from harness.verdict_table import RULE, verdict_table
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
-from systems.reference import OFF_TRAINING
+from systems.reference import OFF_TRAINING, STABLE_CLEARING
 
 __all__ = ["TABLES", "build_tables"]
 
@@ -59,12 +60,14 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
         for quantity, against, title in (("delta", "reference", "delta"), (COI_DELTA, "reference", COI_DELTA),
                                          ("omega", "reference", "omega"),
                                          ("delta", OFF_TRAINING, "delta off the training points"),
+                                         (COI_DELTA, STABLE_CLEARING, f"{COI_DELTA}, stable t_c"),
+                                         ("omega", STABLE_CLEARING, "omega, stable t_c"),
                                          ("delta", "paper ode45 data", "delta vs paper data")):
             sel = g[(g["quantity"] == quantity) & (g["against"] == against)]
             if sel.empty:
                 continue
             row[f"{title} rel. L2"] = fmt_range(sel["rel_l2"])
-            if against == OFF_TRAINING:
+            if against in (OFF_TRAINING, STABLE_CLEARING):
                 continue
             row[f"{title} max abs"] = fmt_range(sel["max_abs"])
             if against == "reference":
@@ -199,37 +202,6 @@ def _break_even_table(frames: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _cct_table(frames: dict) -> pd.DataFrame:
-    """A fault case's CCT per adapter (`harness.suites.cct`): its CCT, the reference's, the error,
-    the warm time of the search, and for a surrogate its training (its `fit` row) and break-even
-    N* = training / (classical search - surrogate search) (`break_even`): the number of CCT
-    searches after which training and N* surrogate searches cost no more than N* searches of the
-    fastest classical adapter whose CCT is within the bracket (1 ms) of the reference. A surrogate
-    trained on one contingency answers that contingency's CCT: it pays off on its own only for N* <= 1."""
-    df = ok(frames.get("cct"))
-    if df.empty or "cct_s" not in df:
-        return pd.DataFrame()
-    df = df.assign(label=label(df))
-    fits = ok(frames.get("fit"))
-    accurate = df[~trained(df) & (df["cct_error_s"].abs() <= df["bracket_s"])]
-    best = accurate.loc[accurate["median_s"].idxmin()] if not accurate.empty else None
-    rows = []
-    for _, r in df.iterrows():
-        row = {"case": r["case"], "solver": r["label"], "seed": int(r["seed"]) if r["seed"] >= 0 else "-",
-               "search": r["method"], "CCT (s)": fmt(r["cct_s"], 5), "reference CCT (s)": fmt(r["reference_cct_s"], 7),
-               "CCT error (ms)": fmt(1e3 * r["cct_error_s"], 2) if r["note"] == "" else r["note"],
-               "time to CCT (ms)": _latency_cell(r), "solves": int(r["solves"]), "trajectories": int(r["trajectories"])}
-        if trained(r.to_frame().T).iloc[0]:
-            same = fits[(fits["solver"] == r["solver"]) & (fits["config"] == r["config"])
-                        & (fits["variant"] == r["variant"]) & (fits["seed"] == r["seed"])] if not fits.empty else fits
-            fit_s = float(same["fit_s"].iloc[0]) if not same.empty else float("nan")
-            n_star = break_even(fit_s, best["median_s"], r["median_s"]) if best is not None else float("nan")
-            row["training (s)"] = fmt(fit_s)
-            row["break-even N* (CCT searches)"] = "never" if n_star == float("inf") else fmt(n_star)
-        rows.append(row)
-    return pd.DataFrame(rows)
-
-
 def _status_table(frames: dict) -> pd.DataFrame:
     everything = pd.concat([df for df in frames.values() if not df.empty], ignore_index=True) if frames else None
     if everything is None or everything.empty:
@@ -267,11 +239,7 @@ TABLES = {
                         "tight reference (SMIB: over the (m, d) pairs; multi-machine: the case's own values) or "
                         "the paper's ode45 data (its own case); errors: mean and worst over pairs and machines"),
                        _identification_table),
-    "cct": (("Critical clearing time: each adapter's CCT to a bracket of 1 ms (the criterion: a machine more than "
-             "pi rad from the centre of inertia within the horizon, judged every 10 ms), its error against the "
-             "reference's (bisection to 1e-6 s on DOP853 at 1e-12), the warm time of the whole search (median ± half "
-             "the interquartile range) and, for a surrogate, its training and break-even against the fastest "
-             "classical search within 1 ms of the reference"), _cct_table),
+    "cct": (CCT_TITLE, cct_table),
     "fit": ("Preparation cost, apart from queries: build, JIT, training", _fit_table),
     "status": ("Skipped or failed", _status_table),
 }

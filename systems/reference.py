@@ -32,6 +32,9 @@ PAPER_DATA = "paper ode45"
 # The accuracy suite's name (column `against`) of the reference on the grid away from a PINN's
 # training points (`harness.suites.accuracy.off_training_grid`).
 OFF_TRAINING = "reference, off the training points"
+# ... and of the reference on the clearing times of the standard grid below a fault case's reference
+# CCT (`systems.stability.reference_cct`): the stable trajectories, where an engineer reads them.
+STABLE_CLEARING = "reference, stable clearing times"
 
 
 def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:

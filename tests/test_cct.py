@@ -12,19 +12,22 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from harness.analysis import COI_DELTA
 from harness.cct_plot import cct_plot
+from harness.cct_table import cct_headline
 from harness.labels import Labels
 from harness.plan import plan
 from harness.runner import run_unit
 from harness.runs import QUICK, SolverSpec
 from harness.sections import case_sections, suite_frames
 from harness.suites import SUITES
+from harness.suites.accuracy import accuracy
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from harness.tables import build_tables
 from solvers import SOLVERS
 from solvers.base import AbstractSolver, FitReport
 from systems.cases import CASES, Case
-from systems.reference import reference
+from systems.reference import STABLE_CLEARING, reference
 from systems.stability import ANGLE_LIMIT, reference_cct
 
 CASE = "kundur4-bus7-line7-8a"
@@ -176,3 +179,68 @@ def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(m
         assert fit_s + n_star * surrogate_s == pytest.approx(n_star * classical_s, rel=1e-2)
     else:  # the stand-in reference answers timed repeats from its cache
         assert cell == "never"
+
+
+def _search(solver: str, error_ms: float, median_ms: float, spread: float = 0.01, **extra) -> dict:
+    """A cct row of case kundur4's fault: the search's CCT error (ms) and its time (median, ms)."""
+    ref = 0.2
+    return {"suite": "cct", "case": CASE, "solver": solver, "config": "default", "variant": "", "seed": -1,
+            "status": "ok", "trains": False, "method": "bisection", "cct_s": ref + 1e-3 * error_ms,
+            "reference_cct_s": ref, "cct_error_s": 1e-3 * error_ms, "note": "", "solves": 10, "trajectories": 11,
+            "bracket_s": BRACKET_S, "median_s": 1e-3 * median_ms, "q25_s": 1e-3 * median_ms * (1 - spread),
+            "q75_s": 1e-3 * median_ms * (1 + spread), "repeats": 5, **extra}
+
+
+def _surrogate(seed: int, error_ms: float, median_ms: float, fit_s: float, spread: float = 0.01) -> dict:
+    return _search("pinn", error_ms, median_ms, spread, config="fault", seed=0, trains=True,
+                   method="grid + bisection", pinn_seed=seed, seed_fit_s=fit_s)
+
+
+def test_the_headline_matches_each_seed_with_a_rival_at_least_as_close_and_calls_a_side_on_every_seed_only():
+    """The rival of a surrogate's seed is the fastest classical search at least as close to the
+    reference CCT (within the 1 ms bracket counts as exact); a seed more than 5 ms off is a loss;
+    a side is faster only beyond 1.2x with the quartiles apart, and wins only on every seed; the
+    break-even is the worst seed's against its rival."""
+    classical = [_search("coarse", 3.0, 0.1), _search("fine", 0.4, 1.0)]
+    frames = suite_frames([*classical, _surrogate(0, -0.3, 0.5, 10.0), _surrogate(1, 2.0, 0.6, 12.0)])
+    (row,) = cct_headline(frames).to_dict("records")
+    assert row["fastest classical within 1 ms"] == "fine [default]" and row["seeds"] == 2
+    # seed 0 (within the bracket): rival "fine", 1.0 / 0.5 = 2x, PINN faster; seed 1 (2 ms off): rival
+    # "fine" again (0.4 ms), 1.0 / 0.6 = 1.7x, PINN faster: every seed, so the PINN wins
+    assert row["verdict"] == "PINN faster (PINN faster on 2 of 2)"
+    assert row["PINN CCT error (ms)"] == "2" and row["training (s)"] == "12"
+    n_star = 12.0 / (1.0e-3 - 0.6e-3)  # the slowest seed (0.6 ms) against its rival
+    assert float(row["break-even N* (CCT searches)"]) == pytest.approx(n_star, rel=1e-2)
+    # a seed 6 ms off is a loss; one at 1.1x with overlapping quartiles a tie: the headline a tie
+    frames = suite_frames([*classical, _surrogate(0, 6.0, 0.1, 1.0), _surrogate(1, 0.2, 0.9, 1.0, spread=0.2)])
+    (row,) = cct_headline(frames).to_dict("records")
+    assert row["verdict"] == "tie (classical faster on 1 of 2, tie on 1 of 2)"
+    # a surrogate whose every seed is more accurate than any search but "coarse" and "fine" is faster
+    frames = suite_frames([*classical, _surrogate(0, 0.1, 5.0, 1.0)])
+    (row,) = cct_headline(frames).to_dict("records")
+    assert row["verdict"] == "classical faster (classical faster on 1 of 1)"
+    assert row["break-even N* (CCT searches)"] == "never"
+
+
+def test_a_verdict_pinn_searches_with_each_verdict_seed(monkeypatch):
+    """The cct suite measures every seed of `verdict_seeds` of a verdict PINN (a row each, with its
+    training), and one model of any other adapter."""
+    monkeypatch.setitem(SOLVERS, ShiftedSurrogate.name, ShiftedSurrogate)
+    case = CASES[CASE]
+    settings = replace(SETTINGS, verdict_pinns=((ShiftedSurrogate.name, ("default",), ()),), verdict_seeds=(0, 1))
+    rows = cct(_fitted(ShiftedSurrogate, case), case, settings)
+    assert [row["pinn_seed"] for row in rows] == [0, 1]
+    assert [row["cct_error_s"] for row in rows] == pytest.approx([SHIFT_S, SHIFT_S], abs=BRACKET_S / 2)
+    assert np.isnan(rows[0]["seed_fit_s"]) and 0.0 <= rows[1]["seed_fit_s"] < 1.0  # seed 1 trained here
+    assert "traj_pred" in rows[0] and "traj_pred" not in rows[1]
+    assert len(cct(_fitted(ShiftedSurrogate, case), case, SETTINGS)) == 1
+
+
+def test_accuracy_on_a_fault_case_also_covers_the_stable_clearing_times_alone():
+    """On a fault case the accuracy suite adds the angles from the centre of inertia and the speeds
+    over the grid's clearing times below the reference CCT: the reference itself has no error there."""
+    case = CASES[CASE]
+    rows = accuracy(_fitted(ReferenceFaults, case), case, SETTINGS)
+    stable = [row for row in rows if row["against"] == STABLE_CLEARING]
+    assert [row["quantity"] for row in stable] == [COI_DELTA, "omega"]
+    assert all(row["rel_l2"] == 0.0 for row in stable)

@@ -37,7 +37,10 @@ from systems.faults import FAULT_CASES
 # ablations, configs for large systems or sweep points such as `tight`, no network identification).
 # Recorded again when the trapezoid adapter joined the registry: its units added, every other entry
 # as it was; and when the PINNs' `marching-large` (a config for large systems) joined: its units
-# added to the full and scaling runs, every other entry as it was.
+# added to the full and scaling runs, every other entry as it was; and when the fault cases of wscc9 and
+# kundur4 joined make bench and the quick run (wscc9's), with the cct suite among the default suites:
+# their units added, and a cct entry (skipped: fault cases only) of each step case's unit, every
+# other entry as it was (checked when recorded).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {

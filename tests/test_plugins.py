@@ -151,8 +151,10 @@ def test_a_plugin_runs_every_default_suite_through_the_cli_and_the_report_names_
     for row in rows:
         assert row["solver"] == "tiny"
         by_suite.setdefault(row["suite"], set()).add(row["status"])
-    assert set(by_suite) == {"fit", "accuracy", "latency", "work_precision", "identification"}
-    # every row measured, but a latency query the suite itself skips as too slow, with a row
+    assert set(by_suite) == {"fit", "accuracy", "latency", "work_precision", "identification", "cct"}
+    # every row measured, but a latency query the suite itself skips as too slow, with a row, and the
+    # cct suite on a step case (fault cases only)
+    assert by_suite.pop("cct") == {"skipped: cct measures fault cases only, and smib-inference has no fault"}
     assert all(s == "ok" or s.startswith("skipped: estimated") for statuses in by_suite.values() for s in statuses)
     assert all(statuses == {"ok"} for suite, statuses in by_suite.items() if suite != "latency"), by_suite
     accuracy = [r for r in rows if r["suite"] == "accuracy" and r["against"] == "reference" and r["quantity"] == "delta"]

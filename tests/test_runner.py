@@ -313,4 +313,4 @@ def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_al
     assert list(SUITES) == _suite_names() == ["accuracy", "cct", "identification", "latency", "scaling", "verdict",
                                                "work_precision"]
     assert all(SUITES[name].run.__module__ == f"harness.suites.{name}" for name in SUITES)
-    assert DEFAULT_SUITES == ("accuracy", "identification", "latency", "verdict", "work_precision")  # scaling, cct alone
+    assert DEFAULT_SUITES == ("accuracy", "cct", "identification", "latency", "verdict", "work_precision")  # scaling alone

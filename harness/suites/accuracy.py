@@ -11,7 +11,8 @@ from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
-from systems.reference import OFF_TRAINING, reference, seed_reference
+from systems.reference import OFF_TRAINING, STABLE_CLEARING, reference, seed_reference
+from systems.stability import reference_cct
 
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
@@ -50,7 +51,10 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
     (`against` "reference"); for a system without an infinite bus also of the angles relative to
     the centre of inertia (quantity `COI_DELTA`: absolute angles drift together, and their error
     hides or inflates the swings); the same on `off_training_grid` ("reference, off the training
-    points"); delta also against the paper's ode45 data when the case has them."""
+    points"); on a fault case, the angles relative to the centre of inertia and the speeds also over
+    the grid's clearing times below the reference CCT alone (`STABLE_CLEARING`: past it a machine
+    slips poles, and its angle error, growing without bound, dominates the whole grid's); delta also
+    against the paper's ode45 data when the case has them."""
     t, P1 = standard_grid(case)
     traj = solver.solve(t, P1)
     ref_delta, ref_omega = reference(case, t, P1)
@@ -69,6 +73,13 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
                     relative_angles(case, ref_delta), P1),
             _errors(COI_DELTA, OFF_TRAINING, "rad", relative_angles(case, off.delta),
                     relative_angles(case, off_delta)),
+        ]
+    if case.fault is not None:
+        stable = P1 < reference_cct(case)
+        rows += [
+            _errors(COI_DELTA, STABLE_CLEARING, "rad", relative_angles(case, traj.delta[stable]),
+                    relative_angles(case, ref_delta[stable])),
+            _errors("omega", STABLE_CLEARING, "rad/s", traj.omega[stable], ref_omega[stable]),
         ]
     seed = seed_reference(case)
     if seed is not None:

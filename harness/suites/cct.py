@@ -34,6 +34,7 @@ import numpy as np
 
 from harness.runs import Settings
 from harness.suites._base import Suite
+from harness.suites._seeds import seed_models
 from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case
@@ -146,14 +147,8 @@ def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
     return {"traj_t_c": t_c.tolist(), "traj_t": t.tolist(), "traj_pred": pred.tolist(), "traj_ref": ref.tolist()}
 
 
-def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
-    """One row: the fault case's contingency, the adapter's CCT (s) and the reference's, the error
-    (s, the adapter's minus the reference's), the final bracket, the search's `solve` calls and
-    trajectories, and the warm time of the whole search (`median_s`, `q25_s`, `q75_s` over
-    `repeats` searches, s, named as the latency suite names a query's); and the trajectories of
-    the figure (`_trajectories`)."""
-    if case.fault is None:
-        raise ValueError(f"case {case.name!r} is no fault case: it has no CCT")
+def _search_row(solver: AbstractSolver, settings: Settings, ref_cct: float) -> dict:
+    """The search of one model, timed (see `cct`), and its row's measurements."""
     if solver.trains:
         method, run = "grid + bisection", lambda: grid_then_bisect(solver, settings.cct_surrogate_step_s)
     else:
@@ -166,16 +161,34 @@ def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     timing = time_call(search, warmup=1, min_repeats=settings.min_repeats, budget_s=settings.latency_budget_s,
                        slow_s=settings.max_call_s)
     (result,) = last
-    ref_cct = reference_cct(case)
-    return [{
-        "contingency": case.fault.name, "machines": case.n, "method": method,
-        "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
+    return {
+        "method": method, "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
         "stable_s": result.stable_s, "unstable_s": result.unstable_s, "note": result.note,
-        "solves": result.solves, "trajectories": result.trajectories, "bracket_s": BRACKET_S,
-        "criterion_dt_s": CRITERION_DT_S, "angle_limit_rad": ANGLE_LIMIT,
+        "solves": result.solves, "trajectories": result.trajectories,
         "median_s": timing.median_s, "q25_s": timing.q25_s, "q75_s": timing.q75_s, "repeats": timing.repeats,
-        **_trajectories(solver, ref_cct),
-    }]
+    }
 
 
-SUITE = Suite("cct", cct, default=False, fault_cases=True)
+def cct(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+    """One row per model: the fault case's contingency, the adapter's CCT (s) and the reference's,
+    the error (s, the adapter's minus the reference's), the final bracket, the search's `solve`
+    calls and trajectories, and the warm time of the whole search (`median_s`, `q25_s`, `q75_s`
+    over `repeats` searches, s, named as the latency suite names a query's); the trajectories of
+    the figure (`_trajectories`, the unit's own model). A verdict PINN (`Settings.verdict_model`)
+    searches with each seed of `Settings.verdict_seeds` (`pinn_seed`, its training `seed_fit_s`,
+    NaN for the unit's own seed without a model cache: its fit row has it), as the verdict suite
+    times it; any other model, once."""
+    if case.fault is None:
+        raise ValueError(f"case {case.name!r} is no fault case: it has no CCT")
+    ref_cct = reference_cct(case)
+    base = {"contingency": case.fault.name, "machines": case.n, "bracket_s": BRACKET_S,
+            "criterion_dt_s": CRITERION_DT_S, "angle_limit_rad": ANGLE_LIMIT}
+    figure = _trajectories(solver, ref_cct)
+    if not (solver.trains and settings.verdict_model(solver)):
+        return [{**base, **_search_row(solver, settings, ref_cct), **figure}]
+    return [{**base, **_search_row(model, settings, ref_cct), "pinn_seed": seed, "seed_fit_s": fit_s,
+             **(figure if model is solver else {})}
+            for seed, (model, fit_s, _iterations) in seed_models(solver, settings).items()]
+
+
+SUITE = Suite("cct", cct, fault_cases=True)

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.model_cache import fit_or_load, load_cached
 from harness.paired import (
     CLASSICAL_FASTER,
     NO_RIVAL,
@@ -37,6 +36,7 @@ from harness.paired import (
 from harness.runs import Settings
 from harness.suites._base import Suite
 from harness.suites._matching import Query, Rivals, off_training_errors, query_errors, verdict_queries
+from harness.suites._seeds import seed_models
 from solvers.base import AbstractSolver
 from systems.cases import Case
 
@@ -51,22 +51,6 @@ def _rivals(case: Case, settings: Settings) -> Rivals:
         _RIVALS.clear()
         _RIVALS[key] = Rivals(case, settings)
     return _RIVALS[key]
-
-
-def _seeds(solver: AbstractSolver, settings: Settings) -> dict[int, tuple[AbstractSolver, float, int]]:
-    """seed -> (fitted adapter, training seconds, iterations): the unit's own, then each other
-    seed of `settings.verdict_seeds`, trained (or loaded from the model cache) here. The unit's own
-    seed's cost is read from the model cache (NaN and -1 without one: its fit row has it)."""
-    own = int(solver.options["seed"])
-    report = load_cached(solver, settings.cache_dir) if settings.cache_dir is not None else None  # its cost
-    out = {own: (solver, math.nan if report is None else report.seconds, -1 if report is None else report.iterations)}
-    for seed in settings.verdict_seeds:
-        if seed in out:
-            continue
-        other = type(solver)(solver.case, solver.config, **{**solver.options, "seed": seed})
-        report = fit_or_load(other, settings)
-        out[seed] = (other, report.seconds, report.iterations)
-    return out
 
 
 def query_paths(solver: AbstractSolver) -> dict[str, AbstractSolver]:
@@ -108,7 +92,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     these are): the PINN's errors (angles, speeds), its rival and the rival's
     errors, the paired samples (s per call) of both, their medians, the ratio rival / PINN with its
     95 % interval, the label and the seed's training seconds and iterations."""
-    seeds = _seeds(solver, settings)
+    seeds = seed_models(solver, settings)
     rivals = _rivals(case, settings)
     plans: list[dict] = []
     paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
