@@ -11,13 +11,19 @@ t_c (the system is autonomous). A query at t = t_c answers the state at t_c.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 
 import numpy as np
 
 from systems.cases import Case
 
-__all__ = ["PhaseIntegrator", "phases", "switched_states"]
+__all__ = ["STACKED_CELLS", "PhaseIntegrator", "phases", "switched_states"]
+
+# The most (clearing time, output time) pairs of one stacked post-fault call: its output is every
+# t_c's state at the union of all their times since t_c, quadratic in the t_c (10,000 clearing times
+# x 201 times in one call asked for 2e10 states, and make bench ran out of 24 GiB on CasADi's).
+STACKED_CELLS = 2_000_000
 
 # (phase, y0, times, T_c) -> states: `phase` a step case of one phase's network (`Case.phase`),
 # y0 (n_b, 2n) the initial states [delta (rad), omega (rad/s)] at time 0 of n_b trajectories,
@@ -39,8 +45,9 @@ def switched_states(integrate: PhaseIntegrator, case: Case, t: np.ndarray, T_c: 
     """States (len(T_c), len(t), 2n), [delta (rad), omega (rad/s)] on the last axis, of fault case
     `case` at times t (s, >= 0, any order, repeats allowed) for each clearing time T_c (s, >= 0,
     repeats allowed), from `integrate` (`PhaseIntegrator`): one fault-on call, then the post-fault
-    phase of every distinct t_c in one call at the union of their times since t_c (`stacked`) or
-    one call per t_c at its own."""
+    phase of every distinct t_c in one call at the union of their times since t_c (`stacked`: in
+    chunks of at most sqrt(STACKED_CELLS / len(t)) clearing times, so that a call outputs at most
+    ~STACKED_CELLS states) or one call per t_c at its own."""
     times, t_back = np.unique(t, return_inverse=True)
     clearing, c_back = np.unique(T_c, return_inverse=True)
     n_c = clearing.size
@@ -53,11 +60,14 @@ def switched_states(integrate: PhaseIntegrator, case: Case, t: np.ndarray, T_c: 
     rows, cols = np.nonzero(before)
     states[rows, cols] = on[np.searchsorted(on_times, times[cols])]
     at_clearing = on[np.searchsorted(on_times, clearing)]  # (n_c, 2n)
-    if stacked:
-        rows, cols = np.nonzero(~before)
-        since, back = np.unique(times[cols] - clearing[rows], return_inverse=True)
-        if since.size:
-            states[rows, cols] = integrate(post, at_clearing, since, clearing)[rows, back]
+    if stacked:  # in chunks of clearing times: a call's output grows as (its t_c) x (their times since t_c)
+        chunk = max(1, math.isqrt(STACKED_CELLS // max(1, times.size)))
+        for lo in range(0, n_c, chunk):
+            part = slice(lo, lo + chunk)
+            rows, cols = np.nonzero(~before[part])
+            since, back = np.unique(times[cols] - clearing[part][rows], return_inverse=True)
+            if since.size:
+                states[lo + rows, cols] = integrate(post, at_clearing[part], since, clearing[part])[rows, back]
     else:
         for c in range(n_c):
             cols = np.flatnonzero(~before[c])

@@ -142,3 +142,23 @@ def test_a_failed_integration_names_the_clearing_time(case, name, options):
         solver.solve([0.0, 3.0], [0.3])
     with pytest.raises(SolveError, match=f"^{name}: integration failed at t_c=0.3: "):
         solver.solve_points([3.0], [0.3])
+
+
+def test_stacked_post_fault_calls_are_chunked_and_give_the_unchunked_states(case, monkeypatch):
+    """`switched_states` stacks the post-fault phases of many clearing times in chunks whose output
+    is bounded (STACKED_CELLS): the same states as one call per t_c, and no call larger than allowed."""
+    from solvers import fault_phases
+
+    calls = []
+
+    def integrate(phase, y0, times, T_c):  # a stand-in with the interface's shapes: y0 + t, exact
+        calls.append(y0.shape[0] * times.size)
+        return y0[:, None, :] + times[None, :, None] * (1.0 + np.arange(y0.shape[1]))
+
+    t, T_c = np.linspace(0.0, 3.0, 41), np.linspace(0.05, 0.4, 37)[::-1]
+    one_each = fault_phases.switched_states(integrate, case, t, T_c, stacked=False)
+    monkeypatch.setattr(fault_phases, "STACKED_CELLS", 41 * 10 ** 2)  # chunks of 10 clearing times
+    calls.clear()
+    chunked = fault_phases.switched_states(integrate, case, t, T_c, stacked=True)
+    np.testing.assert_allclose(chunked, one_each, rtol=0, atol=1e-12)
+    assert len(calls) == 1 + 4 and max(calls[1:]) <= 10 * 10 * 41  # the fault-on call, then 4 chunks
