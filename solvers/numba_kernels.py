@@ -37,7 +37,6 @@ from scipy.integrate._ivp import dop853_coefficients as _c853
 from solvers.numba_sparse import sparse_power
 from systems.cases import Case
 from systems.model import coupling
-from systems.sparse_network import LUFactors
 
 __all__ = ["DOP853", "DOPRI5", "METHODS", "NO_NETWORK", "RK4", "check_threads", "kernel", "system_array"]
 
@@ -49,7 +48,11 @@ M, D, DELTA0, OMEGA0, P_M, C_INF, S_INF, COUPLING = range(8)
 # The modes of the right-hand side: P_e,k = s_inf_k sin(delta_k) only; the reduced (dense)
 # coupling; the network kept sparse (`net`).
 UNCOUPLED, DENSE, SPARSE = 0, 1, 2
-NO_NETWORK = LUFactors.empty()
+# The reduced form's `net`: None, so that the kernels compiled for it carry no factors (a tuple of
+# 12 arrays passed down to every right-hand side costs their reference counts on each call: numba-rk
+# was 1.7-13x slower with `LUFactors.empty()` here, docs/notebook.md), and the sparse branches are
+# pruned at compile time (`net is None`).
+NO_NETWORK = None
 
 
 def check_threads(owner: str, threads: int) -> None:
@@ -117,9 +120,9 @@ def _start(y, ts, order, system, n, out, col):
 
 @njit(cache=True, error_model="numpy")
 def _mode(system, net, n):
-    """SPARSE when `net` holds factors; else DENSE when P_e needs more than s_inf_k sin(delta_k)
+    """SPARSE when `net` holds factors (not None); else DENSE when P_e needs more than s_inf_k sin(delta_k)
     (some C, S or c_inf entry is non-zero), else UNCOUPLED."""
-    if net.l_inv.size > 0:
+    if net is not None:
         return SPARSE
     for k in range(n):
         if system[k, C_INF] != 0.0:
@@ -144,7 +147,7 @@ def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
         for k in range(n):
             scratch[k] = math.cos(y[k])
             scratch[n + k] = math.sin(y[k])
-    if mode == SPARSE:
+    if net is not None:
         sparse_power(scratch, net, n, work)
     for k in range(n):
         m, d, omega = system[k, M], system[k, D], y[n + k]
@@ -260,7 +263,10 @@ def _make_adaptive(method: int, sens: bool, n: int):
         times of a points query); returns a status code."""
         n_t = order.size
         scratch = np.empty(3 * n)
-        cwork = np.empty(net.l_inv.size, np.complex128)
+        if net is None:
+            cwork = np.empty(0, np.complex128)
+        else:
+            cwork = np.empty(net.l_inv.size, np.complex128)
         K = np.empty((16, n_y))
         work = np.empty((8, n_y))
         y, y_new, tmp = work[3], work[4], work[5]
@@ -390,7 +396,10 @@ def _make_rk4(sens: bool, n: int):
         RK4 itself); `order` as the adaptive methods'; returns a status code."""
         n_t = order.size
         scratch = np.empty(3 * n)
-        cwork = np.empty(net.l_inv.size, np.complex128)
+        if net is None:
+            cwork = np.empty(0, np.complex128)
+        else:
+            cwork = np.empty(net.l_inv.size, np.complex128)
         K = np.empty((4, n_y))
         work = np.empty((4, n_y))
         y, y_old, f_new, tmp = work[0], work[1], work[2], work[3]
