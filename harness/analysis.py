@@ -86,6 +86,21 @@ def fmt(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}g}"
 
 
+def latency_cell(row: pd.Series) -> str:
+    """"median ±half-IQR%" in ms; "(1 run)" instead of a spread for a call timed once; the cost
+    per point for a batch of single points; the status for a query that was not timed."""
+    if row["status"] != "ok":
+        return str(row["status"]).replace("skipped: ", "")
+    cell = fmt(1e3 * row["median_s"])
+    if row.get("repeats", 2) == 1:
+        cell += " (1 run)"
+    else:
+        cell += f" ±{fmt(100 * (row['q75_s'] - row['q25_s']) / (2 * row['median_s']), 2)}%"
+    if row.get("kind") == "points batch":
+        cell += f" ({fmt(1e6 * row['median_s'] / row['n_trajectories'])} us/point)"
+    return cell
+
+
 def fmt_range(values: pd.Series) -> str:
     """"median" or "median [min, max]" over seeds."""
     values = values.dropna()

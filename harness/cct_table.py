@@ -22,7 +22,7 @@ import math
 
 import pandas as pd
 
-from harness.analysis import break_even, fmt, label, ok, trained
+from harness.analysis import break_even, fmt, label, latency_cell, ok, trained
 from harness.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
 
 __all__ = ["CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_table"]
@@ -65,6 +65,14 @@ def _rival(classical: pd.DataFrame, error_s: float, bracket_s: float) -> pd.Seri
     return None if close.empty else close.loc[close["median_s"].idxmin()]
 
 
+def _break_even(classical: pd.DataFrame, surrogate: pd.Series) -> tuple[pd.Series | None, float]:
+    """A surrogate search's rival (`_rival`) and its break-even N* against it (NaN without one)."""
+    rival = _rival(classical, surrogate["cct_error_s"], surrogate["bracket_s"])
+    if rival is None:
+        return None, math.nan
+    return rival, break_even(surrogate["training_s"], rival["median_s"], surrogate["median_s"])
+
+
 def _seed_verdict(pinn: pd.Series, rival: pd.Series | None) -> str:
     if not abs(pinn["cct_error_s"]) <= CCT_GATE_S:  # NaN (no CCT in the range) included
         return CLASSICAL_FASTER
@@ -76,11 +84,6 @@ def _seed_verdict(pinn: pd.Series, rival: pd.Series | None) -> str:
     if ratio < 1 / TIE_FACTOR and rival["q75_s"] < pinn["q25_s"]:
         return CLASSICAL_FASTER
     return TIE
-
-
-def _time_cell(r: pd.Series) -> str:
-    spread = "" if r.get("repeats", 2) == 1 else f" ±{fmt(100 * (r['q75_s'] - r['q25_s']) / (2 * r['median_s']), 2)}%"
-    return f"{fmt(1e3 * r['median_s'])}{spread}" + (" (1 run)" if r.get("repeats", 2) == 1 else "")
 
 
 def _each_adapter(classical: pd.DataFrame) -> str:
@@ -105,10 +108,9 @@ def cct_table(frames: dict) -> pd.DataFrame:
             row = {"case": r["case"], "solver": r["label"], "seed": r["model_seed"] if r["surrogate"] else "-",
                    "search": r["method"], "CCT (s)": fmt(r["cct_s"], 5), "reference CCT (s)": fmt(r["reference_cct_s"], 7),
                    "CCT error (ms)": fmt(1e3 * r["cct_error_s"], 2) if r["note"] == "" else r["note"],
-                   "time to CCT (ms)": _time_cell(r), "solves": int(r["solves"]), "trajectories": int(r["trajectories"])}
+                   "time to CCT (ms)": latency_cell(r), "solves": int(r["solves"]), "trajectories": int(r["trajectories"])}
             if r["surrogate"]:
-                rival = _rival(classical, r["cct_error_s"], r["bracket_s"])
-                n_star = break_even(r["training_s"], rival["median_s"], r["median_s"]) if rival is not None else math.nan
+                _, n_star = _break_even(classical, r)
                 row["training (s)"] = fmt(r["training_s"])
                 row["break-even N* (CCT searches)"] = "never" if n_star == math.inf else fmt(n_star)
             rows.append(row)
@@ -130,7 +132,7 @@ def cct_headline(frames: dict) -> pd.DataFrame:
         head = {"case": name, "reference CCT (s)": fmt(case["reference_cct_s"].iloc[0], 7),
                 "each classical adapter: CCT error / time to CCT (ms)": _each_adapter(classical),
                 "fastest classical within 1 ms": best["label"] if best is not None else "none",
-                "its time to CCT (ms)": _time_cell(best) if best is not None else "n/a"}
+                "its time to CCT (ms)": latency_cell(best) if best is not None else "n/a"}
         pinns = case[case["surrogate"]]
         if pinns.empty:
             rows.append({**head, "PINN": "none in this run"})
@@ -139,9 +141,8 @@ def cct_headline(frames: dict) -> pd.DataFrame:
             fastest = runs.loc[runs.groupby("model_seed")["median_s"].idxmin()]  # each seed's fastest path
             verdicts, worst, worst_n = [], None, -math.inf
             for _, r in fastest.iterrows():
-                rival = _rival(classical, r["cct_error_s"], r["bracket_s"])
+                rival, n_star = _break_even(classical, r)
                 verdicts.append(_seed_verdict(r, rival))
-                n_star = break_even(r["training_s"], rival["median_s"], r["median_s"]) if rival is not None else math.nan
                 if worst is None or r["median_s"] > worst["median_s"]:
                     worst, worst_n = r, n_star
             label_ = verdicts[0] if len(set(verdicts)) == 1 else TIE
@@ -149,7 +150,7 @@ def cct_headline(frames: dict) -> pd.DataFrame:
             errors = 1e3 * fastest["cct_error_s"]
             rows.append({**head, "PINN": pinn, "seeds": len(fastest),
                          "PINN CCT error (ms)": fmt(errors.iloc[errors.abs().argmax()], 2),
-                         "PINN time to CCT (ms)": _time_cell(worst), "training (s)": fmt(fastest["training_s"].max()),
+                         "PINN time to CCT (ms)": latency_cell(worst), "training (s)": fmt(fastest["training_s"].max()),
                          "break-even N* (CCT searches)": "never" if worst_n == math.inf else fmt(worst_n),
                          "verdict": f"{label_} ({counts})"})
     return pd.DataFrame(rows)

@@ -20,6 +20,7 @@ from harness.analysis import (
     identification_data,
     label,
     ladder,
+    latency_cell,
     matched_speedups,
     ok,
     trained,
@@ -76,27 +77,12 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _latency_cell(row: pd.Series) -> str:
-    """"median ±half-IQR%" in ms; "(1 run)" instead of a spread for a call timed once; the cost
-    per point for a batch of single points; the status for a query that was not timed."""
-    if row["status"] != "ok":
-        return str(row["status"]).replace("skipped: ", "")
-    cell = fmt(1e3 * row["median_s"])
-    if row.get("repeats", 2) == 1:
-        cell += " (1 run)"
-    else:
-        cell += f" ±{fmt(100 * (row['q75_s'] - row['q25_s']) / (2 * row['median_s']), 2)}%"
-    if row.get("kind") == "points batch":
-        cell += f" ({fmt(1e6 * row['median_s'] / row['n_trajectories'])} us/point)"
-    return cell
-
-
 def _latency_table(frames: dict) -> pd.DataFrame:
     df = frames.get("latency")
     if df is None or df.empty or "query" not in df:
         return pd.DataFrame()
     df = df[df["query"].notna()]
-    df = df.assign(label=label(df), cell=[_latency_cell(r) for _, r in df.iterrows()])
+    df = df.assign(label=label(df), cell=[latency_cell(r) for _, r in df.iterrows()])
     wide = df.pivot_table(index=["case", "label"], columns="query", values="cell", aggfunc="first", sort=False)
     wide.columns = [f"{c} (ms)" for c in wide.columns]
     return wide.reset_index().rename(columns={"label": "solver"})
