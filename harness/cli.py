@@ -69,7 +69,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--config", nargs="+", default=None, metavar="NAME",
                      help="named configurations to run (default: every config of each adapter but those the "
                           "run leaves out: make bench the ablations, such as the two-output PINNs, and the configs "
-                          "for large systems, which the scaling suite runs)")
+                          "for large systems, which the scaling suite runs; on the fault cases also the configs that are "
+                          "a point of the precision sweep, such as tight)")
     run.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                      help="set an adapter option in every selected adapter that has it (repeatable; VALUE "
                           "read as JSON where it is, e.g. --option optimizer=lbfgs --option max_iterations=100); "
@@ -157,6 +158,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
+    if args.config:  # a config named runs on the fault cases too
+        settings = replace(settings, fault_omit_marks=())
     if args.noise_draws is not None:
         if args.noise_draws < 1:
             raise UsageError(f"swingbench run: --noise-draws must be >= 1, got {args.noise_draws}")

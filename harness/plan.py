@@ -153,10 +153,14 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
     `settings.skip_identify_marks`, the multi-machine cases not in
     `settings.network_identify_cases`, and there every config not declared to identify networks
     (`IDENTIFIES_NETWORKS`; `identifiers`, the configs that are, for the message). A suite of fault
-    cases (`Suite.fault_cases`) leaves out every step case."""
+    cases (`Suite.fault_cases`) leaves out every step case. On a fault case, every suite leaves
+    out the configs with a mark in `settings.fault_omit_marks`."""
     if suite.fault_cases and case.fault is None:
         return f"skipped: {suite.name} measures fault cases only, and {case.name} has no fault"
     cls = solver_class(spec.solver)
+    if case.fault is not None and cls is not None and cls.marks(spec.config) & set(settings.fault_omit_marks):
+        marks = ", ".join(sorted(cls.marks(spec.config) & set(settings.fault_omit_marks)))
+        return f"skipped: config {spec.config} ({marks}) not run on fault cases in the {settings.name} run (--full runs it)"
     if not suite.identifies or cls is None:
         return None
     marks = cls.marks(spec.config)

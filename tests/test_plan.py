@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from harness.plan import FIT, Unit, not_on_case, plan
+from harness.plan import FIT, Unit, left_out, not_on_case, plan
 from harness.runner import run_unit
 from harness.runs import DEFAULT, FULL, QUICK, SolverSpec, default_specs
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
@@ -40,7 +40,9 @@ from systems.faults import FAULT_CASES
 # added to the full and scaling runs, every other entry as it was; and when the fault cases of wscc9 and
 # kundur4 joined make bench and the quick run (wscc9's), with the cct suite among the default suites:
 # their units added, and a cct entry (skipped: fault cases only) of each step case's unit, every
-# other entry as it was (checked when recorded).
+# other entry as it was (checked when recorded); and when make bench left the sweep points (`tight`) out
+# on the fault cases (`Settings.fault_omit_marks`): those entries skipped, their fits gone, every other
+# entry as it was (checked when recorded).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {
@@ -164,3 +166,13 @@ def test_a_suite_the_settings_leave_out_is_one_skipped_row_of_its_unit_and_build
     # beside a suite that runs, the fit is for that suite only, and the skip keeps its place
     both = replace(unit, suites=("accuracy", "identification"))
     assert both.works() == [FIT, "accuracy", "identification"]
+
+
+def test_make_bench_leaves_the_sweep_points_out_on_fault_cases_only_unless_named():
+    fault, step = CASES["wscc9-bus8-line8-9"], CASES["wscc9"]
+    tight, default = SolverSpec("numba-rk", "tight"), SolverSpec("numba-rk", "default")
+    latency = SUITES["latency"]
+    assert "not run on fault cases" in left_out(tight, fault, latency, DEFAULT)
+    assert left_out(tight, step, latency, DEFAULT) is None
+    assert left_out(default, fault, latency, DEFAULT) is None
+    assert left_out(tight, fault, latency, replace(DEFAULT, fault_omit_marks=())) is None
