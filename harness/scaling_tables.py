@@ -14,7 +14,8 @@ __all__ = ["COSTS", "LARGE_N_POINTS", "break_even_by_n", "exponents", "log_log_s
 
 # The cost columns of `scaling_frame`, with their names in the tables.
 COSTS = {"prep_s": "preparation (s)", "grid_s": "grid query (s)", "point_s": "single point (s)",
-         "peak_rss_mib": "peak memory (MiB)"}
+         "peak_rss_mib": "peak memory (MiB)", "steps": "steps (one trajectory)", "step_s": "s per step",
+         "rhs_s": "s per right-hand side"}
 _KEYS = ["case", "solver", "config", "variant", "seed"]
 # The growth at scale: the slope over this many of the largest N measured, beside the global fit
 # (which the small-N overhead dominates).
@@ -31,7 +32,9 @@ def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
     `label`, preparation (its fit row's `fit_s`, s), grid and single-point query medians (s), peak
     resident memory (MiB, when the unit ran in a process of its own), rel. L2 and the grid size;
     `trains` for PINNs; `per_sim_s`, the grid query's seconds per trajectory per simulated second
-    (grid median / trajectories / horizon). Only the first seed of a trained spec is measured by
+    (grid median / trajectories / horizon); `steps`, `step_s` and `rhs_s`, the single point's
+    trajectory's steps and its time per step and per right-hand side evaluation (NaN for an adapter
+    that does not count them, `AbstractSolver.counts_steps`). Only the first seed of a trained spec is measured by
     the suite."""
     scaling = ok(frames.get("scaling"))
     if scaling.empty:
@@ -47,6 +50,8 @@ def scaling_frame(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
         "prep_s": scaling["fit_s"], "grid_s": scaling["grid_median_s"], "point_s": scaling["point_median_s"],
         "peak_rss_mib": scaling.get("peak_rss_mib", pd.Series(np.nan, index=scaling.index)),
         "rel_l2": scaling["rel_l2"], "n_trajectories": scaling["n_trajectories"],
+        **{column: scaling.get(column, pd.Series(np.nan, index=scaling.index)).astype(float)
+           for column in ("steps", "step_s", "rhs_s")},
     })
     horizon = scaling["horizon_s"] if "horizon_s" in scaling else pd.Series(np.nan, index=scaling.index)
     out["per_sim_s"] = out["grid_s"] / out["n_trajectories"] / horizon.fillna(_DEFAULT_HORIZON_S)

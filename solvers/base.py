@@ -27,6 +27,7 @@ __all__ = [
     "NotFittedError",
     "Points",
     "SolveError",
+    "StepCount",
     "Trajectory",
 ]
 
@@ -122,6 +123,16 @@ class Identification(NamedTuple):
     d_ci95: np.ndarray
 
 
+class StepCount(NamedTuple):
+    """The work of one trajectory over a step case's horizon [0, t_final] s
+    (`AbstractSolver.step_count`): `steps` the accepted steps; `rhs_evals` the right-hand side
+    evaluations as the integrator counts them (rejected steps and finite-difference Jacobian
+    columns included), None where it does not count them."""
+
+    steps: int
+    rhs_evals: int | None = None
+
+
 _new_trajectory = tuple.__new__
 
 
@@ -167,6 +178,8 @@ class AbstractSolver(abc.ABC):
     - `handles_faults`: it integrates a fault case (`Case.fault`: the network switched at the
       clearing time t_c, the scenario parameter) with the switch exact; an adapter without it
       refuses a fault case (ValueError), never integrating it as a step case;
+    - `counts_steps`: `step_count(p1)` reports the steps (and, where its integrator counts them,
+      the right-hand side evaluations) of one trajectory, integrated as `solve` integrates it;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
       mode, a compiled query path);
     - `QUERY_OPTIONS`: its options that change only how a model is queried or how fast it is
@@ -198,6 +211,7 @@ class AbstractSolver(abc.ABC):
     compiled: ClassVar[bool] = False
     does_work: ClassVar[bool] = True
     handles_faults: ClassVar[bool] = False
+    counts_steps: ClassVar[bool] = False
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset()
@@ -364,6 +378,25 @@ class AbstractSolver(abc.ABC):
             self._check_domain(float(t.max()), float(p1.min()), float(p1.max()))
         delta, omega = self._solve_points(t, p1)
         return Points(t, p1, np.asarray(delta, np.float64), np.asarray(omega, np.float64))
+
+    def step_count(self, p1: float) -> StepCount:
+        """The steps of one trajectory at generator-1 power `p1` (p.u., within the case's range)
+        over [0, t_final] s, integrated as `solve` integrates it, and its right-hand side
+        evaluations where the integrator counts them. Adapters that declare `counts_steps`, on a
+        step case; otherwise a ValueError saying which."""
+        if not self.counts_steps:
+            raise ValueError(f"{self.name} does not count its steps (counts_steps is False)")
+        if self.case.fault is not None:
+            raise ValueError(f"{self.name}: step_count takes a step case; {self.case.name!r} is a fault case")
+        if not self.fitted:
+            raise NotFittedError(f"{self.name}: call fit() (or load()) before step_count()")
+        if not self.case.p1_min <= float(p1) <= self.case.p1_max:
+            raise ValueError(f"P1 = {p1!r} p.u. is outside the case's range [{self.case.p1_min}, {self.case.p1_max}] p.u.")
+        return StepCount(*self._step_count(float(p1)))
+
+    def _step_count(self, p1: float) -> StepCount:
+        """`step_count` on a validated p1 (p.u.); an adapter with `counts_steps` overrides it."""
+        raise NotImplementedError(f"{self.name} declares counts_steps but does not implement _step_count")
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (n_s, n), at the pairs (t[i], P1[i]). Default: one `_solve` per pair;

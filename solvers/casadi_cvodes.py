@@ -8,7 +8,7 @@ from typing import ClassVar, Literal
 import casadi as ca
 import numpy as np
 
-from solvers.base import LARGE_SYSTEMS, AbstractSolver, Estimate, SolveError
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, Estimate, SolveError, StepCount
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -102,6 +102,7 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
     has_tolerance = True
     takes_threads = True
     handles_faults = True
+    counts_steps = True
     QUERY_OPTIONS = frozenset({"threads"})
 
     def _make_caches(self) -> None:
@@ -154,6 +155,17 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
         (xf,) = self._run(lambda x0, p: [fn(x0=x0, p=p)["xf"]], P1, self._x0(n_p), params)
         # map concatenates the trajectories' (2n, n_t) outputs horizontally: column k * n_t + j
         return xf.reshape(2 * n, n_p, times.size).transpose(1, 2, 0)
+
+    def _step_count(self, p1: float) -> StepCount:
+        """CVODES's steps (`nsteps`) and right-hand side evaluations (`nfevals`; its Jacobian is
+        CasADi's algorithmic derivative, not differences) of one trajectory to t_final, from the
+        integrator's statistics."""
+        case = self.case
+        fn = self._integrator((case.t_final,))
+        params = np.concatenate([case.powers(np.array([p1]))[0], case.m, case.d])
+        self._run(lambda x0, p: [fn(x0=x0, p=p)["xf"]], np.array([p1]), self._x0(1), params)
+        stats = fn.stats()
+        return StepCount(int(stats["nsteps"]), int(stats["nfevals"]))
 
     def _phase(self, phase: Case, y0: np.ndarray, times: np.ndarray, T_c: np.ndarray) -> np.ndarray:
         """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""

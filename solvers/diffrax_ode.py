@@ -12,7 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
+from solvers.base import AbstractSolver, Estimate, FitReport, SolveError, StepCount
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -97,10 +97,11 @@ def _vector_field(structure: Structure):
     return field
 
 
-def phase_solver(structure: Structure, method: str, adaptive: bool, max_steps: int):
+def phase_solver(structure: Structure, method: str, adaptive: bool, max_steps: int, count: bool = False):
     """solve(y0, m, d, rtol, atol, dt, t, P) -> (ys (n_t, 2n, ...), ok): the system of `structure`
     (its coupling; the initial state is y0, (2n, ...) like P's trailing axes) from time 0 to t[-1],
-    saved at t (sorted, s), P (n, ...) p.u.: one trajectory, or (n, n_p) stacked. Traceable."""
+    saved at t (sorted, s), P (n, ...) p.u.: one trajectory, or (n, n_p) stacked. Traceable.
+    `count`: (the accepted steps, ok) in place of (ys, ok)."""
     term = diffrax.ODETerm(_vector_field(structure))
     solver = METHODS[method]()
 
@@ -111,9 +112,23 @@ def phase_solver(structure: Structure, method: str, adaptive: bool, max_steps: i
             saveat=diffrax.SaveAt(ts=t), stepsize_controller=control, max_steps=max_steps,
             adjoint=diffrax.ForwardMode(), throw=False,
         )
-        return sol.ys, sol.result == diffrax.RESULTS.successful
+        return sol.stats["num_accepted_steps"] if count else sol.ys, sol.result == diffrax.RESULTS.successful
 
     return solve
+
+
+@functools.lru_cache(maxsize=4)
+def _step_counter(structure: Structure, method: str, adaptive: bool, max_steps: int):
+    """Jitted count(m (n,), d (n,), p_m (n,), rtol, atol, dt, t (1,) s, p1) -> (accepted steps, ok)
+    of one trajectory from time 0 to t[0] with generator-1 power p1 (p.u.), stepped as `_compiled`'s
+    values step it (the saved times do not change diffrax's steps)."""
+    solve_from = phase_solver(structure, method, adaptive, max_steps, count=True)
+    y0 = np.array(structure.y0)
+
+    def count(m, d, p_m, rtol, atol, dt, t, p1):
+        return solve_from(jnp.asarray(y0), m, d, rtol, atol, dt, t, jnp.concatenate([p1[None], p_m[1:]]))
+
+    return jax.jit(count)
 
 
 @functools.lru_cache(maxsize=16)
@@ -231,6 +246,7 @@ class DiffraxODE(AbstractSolver):
     has_tolerance = True
     takes_threads = True
     handles_faults = True
+    counts_steps = True
     QUERY_OPTIONS = frozenset({"threads"})  # its `batch` changes identification's error control: not here
     FIT_SHAPES: ClassVar[tuple[tuple[int, int], ...]] = (
         (201, 100), (201, 1), (201, 10), (201, 1000), (201, 10000), (1, 1),
@@ -314,6 +330,18 @@ class DiffraxODE(AbstractSolver):
             where = f"{symbol}={P1[np.argmin(ok)]:g}"
         raise SolveError(f"{self.name}: integration failed at {where}: max_steps="
                          f"{self.options['max_steps']} reached or the state is not finite")
+
+    def _step_count(self, p1: float) -> StepCount:
+        """diffrax's accepted steps (`sol.stats`) of one trajectory over [0, t_final] s, from a
+        solve compiled for counting (`_step_counter`, compiled on the first call); diffrax does not
+        report its evaluations."""
+        o = self.options
+        count = _step_counter(Structure.of(self.case), o["method"], o["dt"] is None, int(o["max_steps"]))
+        with jax.enable_x64(True):
+            steps, ok = count(*self._fixed, jnp.array([self.case.t_final]), jnp.asarray(p1, jnp.float64))
+        if not bool(ok):
+            self._fail(self.case.t_final, np.array([p1]), np.array([False]))
+        return StepCount(int(steps))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if t.size == 1 or np.all(t[1:] > t[:-1]):

@@ -3,6 +3,7 @@ equation, the loop over P1 inside compiled code; the kernels are in `solvers.num
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, ClassVar, Literal
 
@@ -10,7 +11,7 @@ import numba
 import numpy as np
 
 from solvers import numba_kernels as kernels
-from solvers.base import AbstractSolver, Estimate, FitReport, SolveError
+from solvers.base import AbstractSolver, Estimate, FitReport, SolveError, StepCount
 from solvers.classical import (
     SPARSE_FROM_MACHINES,
     TOLERANCE_CONFIGS,
@@ -76,6 +77,7 @@ class NumbaRK(AbstractSolver):
     name: ClassVar[str] = "numba-rk"
     compiled: ClassVar[bool] = True
     handles_faults: ClassVar[bool] = True
+    counts_steps: ClassVar[bool] = True
     SCHEMA = NumbaRKOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {**TOLERANCE_CONFIGS, "rk4": {"method": "rk4"}}
     CONFIG_MARKS = TOLERANCE_MARKS
@@ -187,6 +189,36 @@ class NumbaRK(AbstractSolver):
         run = self._serial if P1.size == 1 else self._batch
         states = self._run(run, t, P1, self._system, self._net, self._options)
         return states[0], states[1]
+
+    def _step_count(self, p1: float) -> StepCount:
+        """rk4: ceil(t_final / dt) steps of 4 evaluations. An adaptive method's kernel does not
+        count: it stops (TOO_MANY_STEPS) when a trajectory needs more accepted steps than the
+        option max_steps, so the least max_steps with which the one-point query at t_final
+        succeeds is its number of accepted steps (doubling, then bisection: ~2 log2(steps)
+        trajectories); its evaluations, rejected steps included, are not counted."""
+        t, P1 = np.array([self.case.t_final]), np.array([p1])
+        if self.options["method"] == "rk4":
+            steps = math.ceil(self.case.t_final / self.options["dt"])
+            return StepCount(steps, 4 * steps)
+
+        def succeeds(max_steps: int) -> bool:
+            options = self._options.copy()
+            options[3] = max_steps
+            _, failed, status = self._serial(t, P1, self._system, self._net, options)
+            if failed >= 0 and status != kernels.TOO_MANY_STEPS:
+                self._failed(p1, status)
+            return failed < 0
+
+        limit = int(self.options["max_steps"])
+        if not succeeds(limit):
+            self._failed(p1, kernels.TOO_MANY_STEPS)
+        low, high = 0, 1  # low fails (no step at all reaches t_final > 0), high is tried next
+        while high < limit and not succeeds(high):
+            low, high = high, min(2 * high, limit)
+        while high - low > 1:
+            middle = (low + high) // 2
+            low, high = (low, middle) if succeeds(middle) else (middle, high)
+        return StepCount(high)
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.): one

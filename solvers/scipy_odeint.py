@@ -7,7 +7,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.integrate import odeint
 
-from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.base import AbstractSolver, Estimate, SolveError, StepCount
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -51,6 +51,7 @@ class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     handles_faults = True
+    counts_steps = True
     # LSODA's stiff (BDF) phases factor the stacked system's Jacobian with LAPACK. With OpenBLAS on
     # 2 threads beside the XLA and OpenMP pools its threads spin-wait on 2 cores (measured, 2 cores,
     # the 100 x 201 grid, rtol 1e-3: 97-216 ms on 2 BLAS threads, 20-32 ms on 1; at 1e-10, 12.7 ms
@@ -70,14 +71,28 @@ class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
         if t[-1] == 0.0:
             y = np.repeat(y0.reshape(1, -1), t.size, axis=0)
         else:
-            y, info = odeint(
-                _rhs, y0.ravel(), grid, args=args, rtol=self.options["rtol"], atol=self.options["atol"],
-                tfirst=True, full_output=True, mxstep=100000, ml=2 * n - 1, mu=2 * n - 1,
-            )
-            if info["message"] != "Integration successful.":
-                raise SolveError(f"{self.name}: integration failed at {failed}: {info['message']}")
-            y = y[grid.size - t.size:]  # drop the prepended t = 0
+            y = self._lsoda(y0.ravel(), grid, args, n, failed)[0][grid.size - t.size:]  # drop the prepended t = 0
         return y.reshape(t.size, n_b, 2 * n).transpose(1, 0, 2)
+
+    def _lsoda(self, y0: np.ndarray, grid: np.ndarray, args: tuple, n: int, failed: str) -> tuple[np.ndarray, dict]:
+        """odeint's states at `grid` (s, from 0) of the stacked system `_rhs` from y0, and its
+        counters (`full_output`); a failure is a SolveError naming `failed`."""
+        y, info = odeint(
+            _rhs, y0, grid, args=args, rtol=self.options["rtol"], atol=self.options["atol"],
+            tfirst=True, full_output=True, mxstep=100000, ml=2 * n - 1, mu=2 * n - 1,
+        )
+        if info["message"] != "Integration successful.":
+            raise SolveError(f"{self.name}: integration failed at {failed}: {info['message']}")
+        return y, info
+
+    def _step_count(self, p1: float) -> StepCount:
+        """LSODA's steps (`nst`) and right-hand side evaluations (`nfe`, the banded Jacobian's
+        differences included) of the one-point query at t_final."""
+        case = self.case
+        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(np.array([p1])))
+        _, info = self._lsoda(np.array(case.delta0 + case.omega0, float), np.array([0.0, case.t_final]), args,
+                              case.n, f"P1={p1:g}")
+        return StepCount(int(info["nst"][-1]), int(info["nfe"][-1]))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.case.fault is not None:

@@ -7,7 +7,7 @@ from typing import ClassVar, Literal
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from solvers.base import AbstractSolver, Estimate, SolveError
+from solvers.base import AbstractSolver, Estimate, SolveError, StepCount
 from solvers.classical import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -64,6 +64,7 @@ class ScipyRK45(StackedStates, PointsByP1, AbstractSolver):
     CONFIG_MARKS = TOLERANCE_MARKS
     has_tolerance = True
     handles_faults = True
+    counts_steps = True
     VARIANTS = ({"batch": "stacked"},)
     QUERY_OPTIONS = frozenset({"batch"})  # `identify` simulates stacked in either mode
 
@@ -78,15 +79,25 @@ class ScipyRK45(StackedStates, PointsByP1, AbstractSolver):
         def integrate(y0_all: np.ndarray, args: tuple) -> np.ndarray:
             if t[-1] == 0.0:
                 return np.repeat(y0_all[:, None], t.size, axis=1)
-            sol = solve_ivp(
-                _rhs, (0.0, t[-1]), y0_all, method=self.method, t_eval=t,
-                rtol=self.options["rtol"], atol=self.options["atol"], args=args,
-            )
-            if not sol.success:
-                raise SolveError(f"{self.name}: integration failed at {failed}: {sol.message}")
-            return sol.y
+            return self._ivp(y0_all, args, t[-1], t, failed).y
 
         return stacked_states(integrate, case, t, P, y0)
+
+    def _ivp(self, y0_all: np.ndarray, args: tuple, t_end: float, t_eval: np.ndarray | None, failed: str):
+        """`solve_ivp` of the stacked system `_rhs` from 0 to t_end (s), saved at t_eval (None:
+        at its steps); a failure is a SolveError naming `failed`."""
+        sol = solve_ivp(_rhs, (0.0, t_end), y0_all, method=self.method, t_eval=t_eval,
+                        rtol=self.options["rtol"], atol=self.options["atol"], args=args)
+        if not sol.success:
+            raise SolveError(f"{self.name}: integration failed at {failed}: {sol.message}")
+        return sol
+
+    def _step_count(self, p1: float) -> StepCount:
+        """solve_ivp's accepted steps (its output at every step) and `nfev`."""
+        case = self.case
+        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(np.array([p1])))
+        sol = self._ivp(np.array(case.delta0 + case.omega0, float), args, case.t_final, None, f"P1={p1:g}")
+        return StepCount(sol.t.size - 1, int(sol.nfev))
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         stacked = self.options["batch"] == "stacked"

@@ -11,7 +11,7 @@ import numpy as np
 
 from solvers import trapezoid_kernels as kernels
 from solvers import trapezoid_sparse
-from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, FitReport, SolveError
+from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, FitReport, SolveError, StepCount
 from solvers.classical import (
     SPARSE_FROM_MACHINES,
     NetworkForm,
@@ -83,6 +83,7 @@ class Trapezoid(AbstractSolver):
     name: ClassVar[str] = "trapezoid"
     compiled: ClassVar[bool] = True
     handles_faults: ClassVar[bool] = True
+    counts_steps: ClassVar[bool] = True
     SCHEMA = TrapezoidOptions
     CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}, "tight": {"dt": TIGHT_STEP}}
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {"tight": frozenset({SWEEP_POINT})}
@@ -151,6 +152,12 @@ class Trapezoid(AbstractSolver):
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         states = self._grid(t, P1, self._system, self._options)
         return states[0], states[1]
+
+    def _step_count(self, p1: float) -> StepCount:
+        """The kernel's `STATS` of the one-point query at t_final: its steps, and its Newton
+        iterations as the right-hand side evaluations (one residual each)."""
+        self._grid(np.array([self.case.t_final]), np.array([p1]), self._system, self._options)
+        return StepCount(int(self.stats[0, 0]), int(self.stats[0, 1]))
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.): one

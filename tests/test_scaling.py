@@ -38,6 +38,8 @@ def test_scaling_rows_on_two_sizes_each_unit_in_its_own_process(tiny_run):
         assert r["grid_median_s"] > 0 and r["point_median_s"] > 0 and r["reference_s"] > 0
         assert r["n_trajectories"] == 4 and r["n_times"] == 101  # the scaling grid
         assert 20 < r["peak_rss_mib"] < 8000  # measured in the unit's own process
+        assert 0 < r["steps"] <= r["rhs_evals"]  # LSODA's counters (`step_count`)
+        assert r["step_s"] == pytest.approx(r["point_median_s"] / r["steps"])
     workers = {r["worker"] for r in rows}
     assert len(workers) == 2 and f"{socket.gethostname()}:{os.getpid()}" not in workers  # one process per unit
     fits = [r for r in rows if r["suite"] == "fit"]

@@ -74,7 +74,10 @@ def scaling(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     """One row: the number of machines; the median (s) of warm grid queries (`scaling_grid`) and
     of a single point (t = t_final, the middle P1); the rel. L2 and max abs error (rad) of the
     angles against the reference on the grid, relative to the centre of inertia for a system
-    without an infinite bus (`systems.model.relative_angles`); and what the reference cost."""
+    without an infinite bus (`systems.model.relative_angles`); and what the reference cost. An
+    adapter that `counts_steps` adds the single point's trajectory's `steps` and `rhs_evals`
+    (`AbstractSolver.step_count`; NaN where not counted) and the single point's time per step
+    and per evaluation, `step_s` and `rhs_s` (s, everything of the call included)."""
     t, P1 = scaling_grid(case, settings)
     folder = None if settings.cache_dir is None else Path(settings.cache_dir).parent / "reference"
     ref_delta, _, ref_s = cached_reference(case, t, P1, folder)
@@ -89,13 +92,19 @@ def scaling(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     solver.solve(t1, p1)
     point = _timed(lambda: solver.solve(t1, p1), settings, time.perf_counter() - start)
 
+    work = {}
+    if solver.counts_steps:
+        count = solver.step_count(float(p1[0]))
+        rhs = np.nan if count.rhs_evals is None else float(count.rhs_evals)
+        work = {"steps": count.steps, "rhs_evals": rhs, "step_s": point.median_s / count.steps,
+                "rhs_s": point.median_s / rhs}
     pred, ref = relative_angles(case, delta), relative_angles(case, ref_delta)
     return [{
         "machines": case.n, "n_trajectories": P1.size, "n_times": t.size, "horizon_s": case.t_final,
         "quantity": "delta" if case.has_infinite_bus else "delta - delta_COI",
         "rel_l2": metrics.rel_l2(pred, ref), "max_abs": metrics.max_abs(pred, ref),
         "grid_first_s": first_s, "grid_median_s": grid.median_s, "grid_repeats": grid.repeats,
-        "point_median_s": point.median_s, "point_repeats": point.repeats, "reference_s": ref_s,
+        "point_median_s": point.median_s, "point_repeats": point.repeats, "reference_s": ref_s, **work,
     }]
 
 
