@@ -158,9 +158,10 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
     if suite.fault_cases and case.fault is None:
         return f"skipped: {suite.name} measures fault cases only, and {case.name} has no fault"
     cls = solver_class(spec.solver)
-    if case.fault is not None and cls is not None and cls.marks(spec.config) & set(settings.fault_omit_marks):
-        marks = ", ".join(sorted(cls.marks(spec.config) & set(settings.fault_omit_marks)))
-        return f"skipped: config {spec.config} ({marks}) not run on fault cases in the {settings.name} run (--full runs it)"
+    omitted = cls.marks(spec.config) & set(settings.fault_omit_marks) if case.fault is not None and cls else set()
+    if omitted:
+        return (f"skipped: config {spec.config} ({', '.join(sorted(omitted))}) not run on fault cases in the "
+                f"{settings.name} run (--full runs it)")
     if not suite.identifies or cls is None:
         return None
     marks = cls.marks(spec.config)

@@ -392,7 +392,7 @@ class AbstractSolver(abc.ABC):
             raise NotFittedError(f"{self.name}: call fit() (or load()) before step_count()")
         if not self.case.p1_min <= float(p1) <= self.case.p1_max:
             raise ValueError(f"P1 = {p1!r} p.u. is outside the case's range [{self.case.p1_min}, {self.case.p1_max}] p.u.")
-        return StepCount(*self._step_count(float(p1)))
+        return self._step_count(float(p1))
 
     def _step_count(self, p1: float) -> StepCount:
         """`step_count` on a validated p1 (p.u.); an adapter with `counts_steps` overrides it."""

@@ -14,12 +14,13 @@ from solvers.base import IDENTIFIES_NETWORKS, SWEEP_POINT, SolveError
 from solvers.identification import Estimate, gauss_newton_covariance
 from solvers.options import Bounds, OptionSchema, PositiveFloat
 from systems.cases import Case, Observations
+from systems.model import Coupling, coupling
 
 T = TypeVar("T")
 
 __all__ = ["SPARSE_FROM_MACHINES", "TOLERANCE_CONFIGS", "TOLERANCE_MARKS", "NetworkForm", "ObservationLayout",
            "PointGroups", "PointsByP1", "StackedStates", "ToleranceOptions", "at_query_times", "check_step", "identify_least_squares",
-           "keeps_network_sparse", "points_by_p1", "run_batch", "search_boxes", "which_p1"]
+           "keeps_network_sparse", "points_by_p1", "rhs_args", "run_batch", "search_boxes", "which_p1"]
 
 # The form of the network an adapter integrates: "reduced" (Kron-reduced to the machines, the dense
 # coupling of `systems.model`), "sparse" (kept as the bus admittance matrix, `systems.sparse_network`)
@@ -83,6 +84,12 @@ TOLERANCE_CONFIGS = {
 # "tight" identifies multi-machine cases (at ode45's tolerances the integration error biases the 2n
 # estimates) and, setting only the swept tolerances, is a point of the default config's sweep.
 TOLERANCE_MARKS = {"tight": frozenset({IDENTIFIES_NETWORKS, SWEEP_POINT})}
+
+
+def rhs_args(case: Case, P: np.ndarray) -> tuple[Coupling, np.ndarray, np.ndarray, np.ndarray]:
+    """The arguments after (t, y) of the scipy adapters' right-hand sides: the case's coupling, m
+    and d (n,) p.u., and each trajectory's mechanical powers P (n_b, n) p.u."""
+    return coupling(case), np.asarray(case.m), np.asarray(case.d), P
 
 
 def which_p1(P1: np.ndarray, symbol: str = "P1") -> str:

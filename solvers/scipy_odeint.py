@@ -16,11 +16,12 @@ from solvers.classical import (
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
+    rhs_args,
     run_batch,
 )
 from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
-from systems.model import Coupling, accelerations, coupling
+from systems.model import Coupling, accelerations
 
 
 def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -66,7 +67,7 @@ class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
         (n_b, 2n) at time 0 with powers P (n_b, n) p.u., in one stacked system; `failed` names
         them in a SolveError."""
         n, n_b = case.n, y0.shape[0]
-        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), P)
+        args = rhs_args(case, P)
         grid = t if t[0] == 0.0 else np.concatenate([[0.0], t])  # odeint starts at its first time
         if t[-1] == 0.0:
             y = np.repeat(y0.reshape(1, -1), t.size, axis=0)
@@ -89,7 +90,7 @@ class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
         """LSODA's steps (`nst`) and right-hand side evaluations (`nfe`, the banded Jacobian's
         differences included) of the one-point query at t_final."""
         case = self.case
-        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(np.array([p1])))
+        args = rhs_args(case, case.powers(np.array([p1])))
         _, info = self._lsoda(np.array(case.delta0 + case.omega0, float), np.array([0.0, case.t_final]), args,
                               case.n, f"P1={p1:g}")
         return StepCount(int(info["nst"][-1]), int(info["nfe"][-1]))

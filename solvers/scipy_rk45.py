@@ -16,10 +16,11 @@ from solvers.classical import (
     ToleranceOptions,
     at_query_times,
     identify_by_simulation,
+    rhs_args,
 )
 from solvers.fault_phases import switched_states
 from systems.cases import Case, Observations
-from systems.model import Coupling, accelerations, coupling
+from systems.model import Coupling, accelerations
 
 
 def _rhs(t: float, y: np.ndarray, k: Coupling, m: np.ndarray, d: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -36,7 +37,7 @@ def stacked_states(integrate, case: Case, t: np.ndarray, P: np.ndarray, y0: np.n
     of the stacked system of `_rhs` (rows [delta; omega] x trajectory): P (n_b, n) p.u. and y0
     (n_b, 2n) each trajectory's powers and initial state."""
     n, n_b = case.n, P.shape[0]
-    args = (coupling(case), np.asarray(case.m), np.asarray(case.d), P)
+    args = rhs_args(case, P)
     y = integrate(np.ascontiguousarray(y0.T).ravel(), args).reshape(2 * n, n_b, t.size)
     return y.transpose(1, 2, 0)
 
@@ -95,7 +96,7 @@ class ScipyRK45(StackedStates, PointsByP1, AbstractSolver):
     def _step_count(self, p1: float) -> StepCount:
         """solve_ivp's accepted steps (its output at every step) and `nfev`."""
         case = self.case
-        args = (coupling(case), np.asarray(case.m), np.asarray(case.d), case.powers(np.array([p1])))
+        args = rhs_args(case, case.powers(np.array([p1])))
         sol = self._ivp(np.array(case.delta0 + case.omega0, float), args, case.t_final, None, f"P1={p1:g}")
         return StepCount(sol.t.size - 1, int(sol.nfev))
 
