@@ -71,7 +71,7 @@ class RowStore:
         lines = [json.dumps(row, default=_jsonable, allow_nan=True) for row in rows]
         lines.append(json.dumps({_COMPLETE: key, "rows": len(rows)}, default=_jsonable))
         data = ("\n".join(lines) + "\n").encode("utf-8")
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)  # less the umask, as open() does
         try:
             view = memoryview(data)
             while view:
