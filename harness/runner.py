@@ -8,7 +8,9 @@ measured, so that an option value invalid on one of the cases stops the command 
 already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.executors`) and records each unit of work as it completes, with its rows in one write
 (`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
-says afterwards, in one line, which units failed, and gives the command's exit status.
+says afterwards, in one line, which units failed, and gives the command's exit status. An
+interrupt is no failure: one that compiled code wrapped in another exception stops the run as a
+plain Ctrl-C does (`_failure`).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from harness.runs import Settings, SolverSpec
 from harness.store import RowStore, StoreContents
 from harness.suites import SUITES
 from harness.timing import blas_threads, pinned_threads
-from harness.usage import EXIT_FAILED, UsageError
+from harness.usage import EXIT_FAILED, UsageError, raise_if_interrupted
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
@@ -62,6 +64,11 @@ def check_units(units: Iterable[Unit], settings: Settings,
 
 
 def _failure(exc: BaseException) -> str:
+    """The status of a unit of work that raised `exc`: 'failed: <type>: <message>'. An interrupt is
+    not a failure: when `exc` comes of a KeyboardInterrupt (a Ctrl-C inside numba, JAX or torch
+    code), a KeyboardInterrupt is raised instead (`raise_if_interrupted`), so that the run stops as
+    on a Ctrl-C anywhere else: the unit of work unrecorded, measured by `--resume`."""
+    raise_if_interrupted(exc)
     return f"failed: {type(exc).__name__}: {exc}"
 
 
@@ -69,7 +76,8 @@ def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tu
     """Measure the units of work `todo` (names from `unit.works()`) of `unit` and yield (work, rows)
     as each completes. The adapter is built and, when a suite needs it, fitted or loaded from the
     model cache even if its fit is already recorded. Never raises for a failing adapter: its units
-    of work get one 'failed: ...' row each (a missing dependency 'skipped: ...').
+    of work get one 'failed: ...' row each (a missing dependency 'skipped: ...'); an interrupt,
+    wrapped or not, is raised as a KeyboardInterrupt.
 
     In this process, unless `settings.unit_limits` is set: then the whole unit runs in a fresh
     process under those limits (`harness.isolation`), every row gains `peak_rss_mib` (the peak
@@ -119,19 +127,20 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
                                  "iterations": report.iterations, "loss": report.loss, "message": report.message,
                                  "work_s": time.perf_counter() - start}]
         except Exception as exc:  # noqa: BLE001 - recorded as rows, the run goes on
-            print(f"[swingbench] {unit.label}: {_failure(exc)}", file=sys.stderr)
+            status = _failure(exc)
+            print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
             traceback.print_exc()
             for work in todo:
-                yield work, [{"suite": work, **base, "status": _failure(exc)}]
+                yield work, [{"suite": work, **base, "status": status}]
             return
         for suite in suites:
             start = time.perf_counter()
             try:
                 rows = [{"status": skipped[suite]}] if suite in skipped else SUITES[suite].run(solver, unit.case, settings)
             except Exception as exc:  # noqa: BLE001
-                print(f"[swingbench] {unit.label} {suite}: {_failure(exc)}", file=sys.stderr)
-                traceback.print_exc()
                 rows = [{"status": _failure(exc)}]
+                print(f"[swingbench] {unit.label} {suite}: {rows[0]['status']}", file=sys.stderr)
+                traceback.print_exc()
             work_s = time.perf_counter() - start
             yield suite, [{"suite": suite, **base, "status": "ok", **row, "work_s": work_s} for row in rows]
 

@@ -57,8 +57,8 @@ def counting(monkeypatch):
     def suite(name: str, n: int):
         def run(solver, case, settings):
             calls.append(name)
-            if getattr(run, "interrupt", False):
-                raise KeyboardInterrupt
+            if getattr(run, "interrupt", None) is not None:
+                raise run.interrupt
             return [{"value": float(i)} for i in range(n)]
         return run
 
@@ -156,8 +156,23 @@ def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
     assert store.path.read_bytes() == before
 
 
-def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
-    SUITES["two"].run.interrupt = True
+def _raised(exc: BaseException, cause: BaseException | None = None, context: BaseException | None = None):
+    exc.__cause__, exc.__context__ = cause, context
+    return exc
+
+
+NUMBA_INTERRUPT = "CPUDispatcher(<function points_2_0_3>) returned a result with an exception set"
+
+
+@pytest.mark.parametrize("interrupt", [
+    KeyboardInterrupt(),
+    _raised(SystemError(NUMBA_INTERRUPT), cause=KeyboardInterrupt()),  # numba's dispatcher
+    _raised(RuntimeError("while handling"), context=KeyboardInterrupt()),
+    _raised(ValueError("wrapped twice"), cause=_raised(SystemError(NUMBA_INTERRUPT), context=KeyboardInterrupt())),
+], ids=["plain", "numba-cause", "context", "nested"])
+def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys, interrupt):
+    """However compiled code wraps the KeyboardInterrupt: no failed row, and --resume measures it."""
+    SUITES["two"].run.interrupt = interrupt
     argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress", "off",
             "--out", str(tmp_path)]
     assert main(argv) == 130
@@ -165,7 +180,7 @@ def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
     assert len(err) == 1 and err[0].startswith("[swingbench] interrupted: 2 completed unit(s) of work kept")
     assert err[0].endswith(" ".join(["swingbench", *argv, "--resume"]))
     assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one"]
-    SUITES["two"].run.interrupt = False
+    SUITES["two"].run.interrupt = None
     assert main([*argv, "--resume"]) == 0
     assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one", "two"]
 
