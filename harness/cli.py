@@ -143,7 +143,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.plan import plan
     from harness.provenance import metadata
     from harness.report import write_report
-    from harness.runner import check_units, execute, interrupted_message, open_results, outcome
+    from harness.results_folder import interrupted_message, open_results
+    from harness.runner import check_units, execute, outcome
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
