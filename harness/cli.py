@@ -195,7 +195,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"swingbench run: {exc}") from None
     if args.update_readme:
         _readme_around(args.update_readme)
-    store, contents = open_results(args.out, args.resume, "run",
+    store, contents = open_results(args.out, args.resume, "run", overwrite=args.overwrite,
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
     classes = {spec.solver: solver_class(spec.solver) for spec in specs}

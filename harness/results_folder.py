@@ -4,10 +4,13 @@ and how to continue (`interrupted_message`)."""
 
 from __future__ import annotations
 
+import itertools
 import json
+import os
 import shlex
 import sys
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -18,12 +21,13 @@ __all__ = ["interrupted_message", "open_results"]
 
 
 def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | None = None,
-                 ) -> tuple[RowStore, StoreContents | None]:
+                 overwrite: bool = False) -> tuple[RowStore, StoreContents | None]:
     """The RowStore of the output folder `out`, checked before any work: a usable folder (made if
-    missing), writable. Without `resume` earlier rows are removed; with it, the run being continued
-    must have recorded the values `same` in `out/metadata.json` (rows of other settings would mix),
-    and an interrupted unit is set aside (`RowStore.prepare_resume`). Problems exit with one line
-    (`UsageError`)."""
+    missing), writable. A folder whose rows.jsonl holds rows is refused unless `resume` or
+    `overwrite`: `overwrite` moves the earlier run aside (`_move_aside`), never deleting it; with
+    `resume`, the run being continued must have recorded the values `same` in `out/metadata.json`
+    (rows of other settings would mix), and an interrupted unit is set aside
+    (`RowStore.prepare_resume`). Problems exit with one line (`UsageError`)."""
     out = Path(out)
     if resume and same:
         _check_same_run(out / "metadata.json", same, command)
@@ -37,7 +41,13 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
         raise UsageError(f"swingbench {command}: cannot write to --out {out}: {exc.strerror or exc}") from None
     store = RowStore(out)
     if not resume:
-        store.clear()
+        if store.path.exists() and store.path.stat().st_size > 0:
+            if not overwrite:
+                raise UsageError(f"swingbench {command}: --out {out} holds the rows of an earlier run ({store.path.name}): "
+                                 "add --resume to continue it, or --overwrite to start again with its rows moved aside")
+            moved = _move_aside(out)
+            print(f"[swingbench] --overwrite: the earlier run's {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
+                  f"in {out}", file=sys.stderr)
         return store, None
     try:
         contents = store.prepare_resume()
@@ -47,6 +57,25 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
         print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
               f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
     return store, contents
+
+
+# What a run writes that describes it, and nothing rewrites from its rows: kept with the rows
+ASIDE = ("rows.jsonl", "metadata.json")
+
+
+def _move_aside(out: Path) -> list[tuple[Path, Path]]:
+    """Rename each file of `ASIDE` in `out` to `<stem>.<UTC time>.<suffix>` beside it (the one time
+    for all, e.g. rows.20260314T091500Z.jsonl; -2, -3 ... after the time when one of those names is
+    taken); return the (old, new) paths. `.gitignore` ignores the renamed files."""
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    present = [out / name for name in ASIDE if (out / name).exists()]
+    for n in itertools.count(1):
+        moved = [(p, p.with_name(f"{p.stem}.{stamp}{'' if n == 1 else f'-{n}'}{p.suffix}")) for p in present]
+        if not any(new.exists() for _, new in moved):
+            break
+    for old, new in moved:
+        os.rename(old, new)
+    return moved
 
 
 def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
@@ -68,5 +97,6 @@ def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
 def interrupted_message(store: RowStore, argv: list[str]) -> str:
     """The one line printed on Ctrl-C: what was kept and the command that continues."""
     kept = len(store.read().completed)
+    argv = [arg for arg in argv if arg != "--overwrite"]  # what it moved aside is the earlier run, not this one
     again = shlex.join(["swingbench", *argv, *([] if "--resume" in argv else ["--resume"])])
     return f"[swingbench] interrupted: {kept} completed unit(s) of work kept in {store.path}; continue with: {again}"

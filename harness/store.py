@@ -142,10 +142,6 @@ class RowStore:
                 os.fsync(fh.fileno())
         return contents
 
-    def clear(self) -> None:
-        if self.path.exists():
-            self.path.unlink()
-
 
 def _end_of_last_record(data: bytes) -> int:
     """Byte offset just after the last whole completion-record line of `data` (0 if none)."""

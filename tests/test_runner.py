@@ -185,6 +185,53 @@ def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys, int
     assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one", "two"]
 
 
+# ------------------------------------------------------------------------- a folder that holds rows
+
+AGAIN = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+
+
+def test_a_rerun_into_a_folder_with_rows_is_refused_without_resume_or_overwrite(tmp_path, counting, capsys):
+    assert main([*AGAIN, "--out", str(tmp_path)]) == 0
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rows = (tmp_path / "rows.jsonl").read_bytes()
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main([*AGAIN, "--out", str(tmp_path)])
+    assert info.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        (f"swingbench run: --out {tmp_path} holds the rows of an earlier run (rows.jsonl): add --resume to continue "
+         "it, or --overwrite to start again with its rows moved aside")]
+    assert (tmp_path / "rows.jsonl").read_bytes() == rows and sorted(p.name for p in tmp_path.iterdir()) == before
+    assert counting == ["one"]  # measured once
+
+
+def test_overwrite_moves_the_earlier_rows_and_metadata_aside(tmp_path, counting, capsys):
+    runs = []  # (rows.jsonl, metadata.json) of each run
+    for again in ([], ["--overwrite"], ["--overwrite"]):  # within a second or not: a name of its own each
+        assert main([*AGAIN, *again, "--out", str(tmp_path)]) == 0
+        runs.append(((tmp_path / "rows.jsonl").read_bytes(), (tmp_path / "metadata.json").read_bytes()))
+    aside = {p.read_bytes(): p for p in tmp_path.glob("rows.*.jsonl")}
+    assert set(aside) == {rows for rows, _ in runs[:2]} and len(list(tmp_path.glob("*.*.json*"))) == 4
+    for rows, meta in runs[:2]:
+        stamp = aside[rows].name.removeprefix("rows.").removesuffix(".jsonl")
+        assert (tmp_path / f"metadata.{stamp}.json").read_bytes() == meta
+    assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one"]  # the last run's only
+    first = aside[runs[0][0]].name
+    assert f"[swingbench] --overwrite: the earlier run's rows.jsonl moved to {first}" in capsys.readouterr().err
+
+
+def test_ctrl_c_after_overwrite_is_continued_by_resume_alone(tmp_path, counting, capsys):
+    assert main([*AGAIN, "--out", str(tmp_path)]) == 0
+    SUITES["one"].run.interrupt = KeyboardInterrupt()
+    assert main([*AGAIN, "--overwrite", "--out", str(tmp_path)]) == 130
+    SUITES["one"].run.interrupt = None
+    again = capsys.readouterr().err.strip().splitlines()[-1].split("continue with: ")[1]
+    assert again == " ".join(["swingbench", *AGAIN, "--out", str(tmp_path), "--resume"])
+    with pytest.raises(SystemExit) as info:
+        main([*AGAIN, "--overwrite", "--resume", "--out", str(tmp_path)])
+    assert info.value.code == 2  # argparse: not both
+
+
 # --------------------------------------------------------------------------------------------- CLI
 
 @pytest.mark.parametrize("argv,message", [
