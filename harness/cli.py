@@ -101,8 +101,9 @@ def _parser() -> argparse.ArgumentParser:
     add_shared_options(
         run, out=Path("results"),
         resume_help="keep OUT/rows.jsonl and run only the units of work it does not record as complete (what an "
-                    "interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured again; failed "
-                    "units are results and are kept); resuming a finished run changes nothing",
+                    "interrupted unit left, and a completed unit that lost a row, are set aside in "
+                    "OUT/rows.jsonl.set-aside and measured again; failed units are results and are kept); resuming "
+                    "a finished run changes nothing",
         scheduler_help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) instead of in "
                        "this process; its workers need swingbench installed and run one unit at a time (dask worker "
                        "ADDRESS --nthreads 1)",

@@ -26,8 +26,9 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
     missing), writable. A folder whose rows.jsonl holds rows is refused unless `resume` or
     `overwrite`: `overwrite` moves the earlier run aside (`_move_aside`), never deleting it; with
     `resume`, the run being continued must have recorded the values `same` in `out/metadata.json`
-    (rows of other settings would mix), and an interrupted unit is set aside
-    (`RowStore.prepare_resume`). Problems exit with one line (`UsageError`)."""
+    (rows of other settings would mix), and what is not a whole unit (an interrupted unit's rows,
+    a unit that lost a row) is set aside, saying so in one line (`RowStore.prepare_resume`).
+    Problems exit with one line (`UsageError`)."""
     out = Path(out)
     if resume and same:
         _check_same_run(out / "metadata.json", same, command)
@@ -53,9 +54,10 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
         contents = store.prepare_resume()
     except ValueError as exc:
         raise UsageError(f"swingbench {command}: {exc}") from None
-    if contents.incomplete_rows or contents.bad_lines:
-        print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
-              f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
+    problems = contents.problems()
+    if problems:
+        print(f"[swingbench] {store.path}: set aside {problems} in {store.set_aside_path.name}; "
+              "their units run again", file=sys.stderr)
     return store, contents
 
 

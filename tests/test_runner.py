@@ -112,6 +112,42 @@ def test_bad_lines_are_counted_and_skipped(tmp_path):
     assert "skipped 3 line(s) that are not JSON rows" in contents.warning(store.path)
 
 
+@pytest.mark.parametrize("replacement", [b'{"suite": "one", "val', None], ids=["spoilt", "lost"])
+def test_a_completed_unit_that_lost_a_row_is_set_aside_and_measured_again(tmp_path, counting, capsys, replacement):
+    """Its first row torn in place, or gone: the unit's record counts 2 rows, 1 is left."""
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress",
+            "off", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    store = RowStore(tmp_path)
+    lines = store.path.read_bytes().splitlines()
+    assert [json.loads(line).get("suite") for line in lines[2:5]] == ["one", "one", None]  # after fit's row and record
+    lines[2:3] = [] if replacement is None else [replacement]
+    unit = lines[2:4 if replacement is None else 5]  # what is left of unit `one`, up to its record
+    store.path.write_bytes(b"".join(line + b"\n" for line in lines))
+    contents = store.read()
+    assert contents.damaged_units == 1 and [r["suite"] for r in contents.rows] == ["fit", "two"]
+    assert "the rows of 1 unit(s) that lost a row" in contents.warning(store.path)
+    capsys.readouterr()
+    assert main([*argv, "--resume"]) == 0
+    assert [r["suite"] for r in store.rows()] == ["fit", "two", "one", "one"] and counting == ["one", "two", "one"]
+    assert store.set_aside_path.read_bytes().splitlines() == unit
+    err = capsys.readouterr().err
+    assert f"{store.path}: set aside " in err and "the rows of 1 unit(s) that lost a row in rows.jsonl.set-aside" in err
+    before = store.path.read_bytes()
+    store.prepare_resume()
+    assert store.path.read_bytes() == before
+
+
+def test_a_line_that_is_not_a_row_is_set_aside_and_its_unit_kept(tmp_path):
+    store = RowStore(tmp_path)
+    store.record(KEY, [{**KEY, "v": 1}])
+    whole = store.path.read_bytes()
+    store.path.write_bytes(b"not json\n" + whole)
+    contents = store.prepare_resume()
+    assert contents.bad_lines == 1 and contents.damaged_units == 0 and contents.rows == [{**KEY, "v": 1}]
+    assert store.path.read_bytes() == whole and store.set_aside_path.read_bytes() == b"not json\n"
+
+
 def test_rows_from_before_completion_records_are_read_but_not_resumed(tmp_path):
     store = RowStore(tmp_path)
     store.path.write_text(json.dumps({**KEY, "v": 1}) + "\n")
