@@ -28,6 +28,16 @@ def _suite_names() -> list[str]:
     return sorted(m.name for m in pkgutil.iter_modules(where or []) if not m.name.startswith("_"))
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml's, as of the last `pip install`)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("swingbench")
+    except PackageNotFoundError:
+        return "(not installed: no version)"
+
+
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
 single-machine infinite-bus swing equation (Misyris et al., PESGM 2020).
@@ -49,6 +59,7 @@ def _parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"swingbench {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser(

@@ -189,6 +189,16 @@ def test_cli_help(capsys):
     assert "--quick" in capsys.readouterr().out
 
 
+def test_cli_version_is_the_one_in_pyproject(capsys):
+    import tomllib
+    from pathlib import Path
+
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out == f"swingbench {pyproject['project']['version']}\n"
+
+
 def test_time_at_accuracy_interpolates_on_the_pareto_front():
     from harness.analysis import break_even, pareto_front, time_at_accuracy
 
