@@ -21,11 +21,13 @@ $(STAMP): pyproject.toml
 test: setup
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
+# --overwrite: results/ holds the last run's rows; they are renamed to results/rows.<UTC time>.jsonl
+# (and metadata.<UTC time>.json), which git ignores: delete them once the new run is committed
 bench: setup
-	$(BIN)/swingbench run --out results --update-readme README.md
+	$(BIN)/swingbench run --overwrite --out results --update-readme README.md
 
 bench-quick: setup
-	$(BIN)/swingbench run --quick --out results/quick
+	$(BIN)/swingbench run --quick --overwrite --out results/quick
 
 # the layering (the import-linter contracts in pyproject.toml), no import circle outside systems/,
 # ruff over every package and the tests, mypy on the files pyproject.toml names. The import graph

@@ -28,6 +28,16 @@ def _suite_names() -> list[str]:
     return sorted(m.name for m in pkgutil.iter_modules(where or []) if not m.name.startswith("_"))
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml's, as of the last `pip install`)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("swingbench")
+    except PackageNotFoundError:
+        return "(not installed: no version)"
+
+
 DESCRIPTION = """\
 swingbench: physics-informed neural networks against classical ODE solvers on the
 single-machine infinite-bus swing equation (Misyris et al., PESGM 2020).
@@ -49,6 +59,7 @@ def _parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"swingbench {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     run = sub.add_parser(
@@ -101,8 +112,9 @@ def _parser() -> argparse.ArgumentParser:
     add_shared_options(
         run, out=Path("results"),
         resume_help="keep OUT/rows.jsonl and run only the units of work it does not record as complete (what an "
-                    "interrupted unit left is set aside in OUT/rows.jsonl.set-aside and measured again; failed "
-                    "units are results and are kept); resuming a finished run changes nothing",
+                    "interrupted unit left, and a completed unit that lost a row, are set aside in "
+                    "OUT/rows.jsonl.set-aside and measured again; failed units are results and are kept); resuming "
+                    "a finished run changes nothing",
         scheduler_help="run the units on this dask.distributed scheduler (e.g. tcp://127.0.0.1:8786) instead of in "
                        "this process; its workers need swingbench installed and run one unit at a time (dask worker "
                        "ADDRESS --nthreads 1)",
@@ -143,7 +155,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.plan import plan
     from harness.provenance import metadata
     from harness.report import write_report
-    from harness.runner import check_units, execute, interrupted_message, open_results, outcome
+    from harness.results_folder import interrupted_message, open_results
+    from harness.runner import check_units, execute, outcome
     from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
@@ -194,7 +207,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"swingbench run: {exc}") from None
     if args.update_readme:
         _readme_around(args.update_readme)
-    store, contents = open_results(args.out, args.resume, "run",
+    store, contents = open_results(args.out, args.resume, "run", overwrite=args.overwrite,
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
     classes = {spec.solver: solver_class(spec.solver) for spec in specs}

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.store import atomic_write
+from harness.usage import raise_if_interrupted
 from harness.versions import library_versions
 from solvers import plugin_distribution
 from solvers.base import AbstractSolver, FitReport
@@ -177,6 +178,7 @@ def load_cached(solver: AbstractSolver, cache_dir: Path) -> FitReport | None:
     except _BadEntry as exc:
         problem = str(exc)
     except Exception as exc:  # noqa: BLE001 - whatever the adapter's load raises, the entry is not usable
+        raise_if_interrupted(exc)  # a Ctrl-C inside compiled code: the entry is not to blame
         problem = str(exc) if str(exc).startswith(str(base)) else f"{base}: {type(exc).__name__}: {exc}"
     else:
         solver.fitted = True

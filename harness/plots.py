@@ -269,11 +269,15 @@ def verdict_plot(frames: dict, names: Labels):
 VERDICT_PLOTS = {"verdicts": verdict_plot}
 
 
+# No creation date in a PDF: the same rows give the same bytes (PNGs carry only "Software").
+_FILE_METADATA: dict[str, dict] = {"png": {}, "pdf": {"CreationDate": None}}
+
+
 def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "", names: dict | None = None,
                labels: Labels | None = None) -> list[str]:
     """Write every plot of `names` (default `PLOTS`) that has data as `<name><suffix>.png` and `.pdf`,
     configurations named by `labels` (default: `Labels` of `frames`, as in the tables); return the
-    file stems."""
+    file stems. Written twice from the same frames, with the same matplotlib, they are the same bytes."""
     import io
 
     from harness.store import atomic_write
@@ -286,7 +290,8 @@ def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "",
             continue
         for ext in ("png", "pdf"):
             buffer = io.BytesIO()
-            fig.savefig(buffer, format=ext, dpi=130, bbox_inches="tight")  # legends beside the axes
+            fig.savefig(buffer, format=ext, dpi=130, bbox_inches="tight",  # legends beside the axes
+                        metadata=_FILE_METADATA[ext])
             atomic_write(Path(out_dir) / f"{name}{suffix}.{ext}", buffer.getvalue())
         plt.close(fig)
         written.append(f"{name}{suffix}")

@@ -8,38 +8,36 @@ measured, so that an option value invalid on one of the cases stops the command 
 already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.executors`) and records each unit of work as it completes, with its rows in one write
 (`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
-says afterwards, in one line, which units failed, and gives the command's exit status.
+says afterwards, in one line, which units failed, and gives the command's exit status. An
+interrupt is no failure: one that compiled code wrapped in another exception stops the run as a
+plain Ctrl-C does (`_failure`).
 """
 
 from __future__ import annotations
 
-import json
 import os
-import shlex
 import socket
 import sys
-import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from harness.isolation import OverLimit, call_isolated
 from harness.model_cache import fit_or_load
 from harness.plan import FIT, Unit, plan
 from harness.runs import Settings, SolverSpec
-from harness.store import RowStore, StoreContents
+from harness.store import RowStore
 from harness.suites import SUITES
 from harness.timing import blas_threads, pinned_threads
-from harness.usage import EXIT_FAILED, UsageError
+from harness.usage import EXIT_FAILED, raise_if_interrupted
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
 
-__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "inline",
-           "interrupted_message", "open_results", "outcome", "plan", "run_suites", "run_unit"]
+__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "inline", "outcome", "plan",
+           "run_suites", "run_unit"]
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
@@ -62,6 +60,11 @@ def check_units(units: Iterable[Unit], settings: Settings,
 
 
 def _failure(exc: BaseException) -> str:
+    """The status of a unit of work that raised `exc`: 'failed: <type>: <message>'. An interrupt is
+    not a failure: when `exc` comes of a KeyboardInterrupt (a Ctrl-C inside numba, JAX or torch
+    code), a KeyboardInterrupt is raised instead (`raise_if_interrupted`), so that the run stops as
+    on a Ctrl-C anywhere else: the unit of work unrecorded, measured by `--resume`."""
+    raise_if_interrupted(exc)
     return f"failed: {type(exc).__name__}: {exc}"
 
 
@@ -69,7 +72,8 @@ def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tu
     """Measure the units of work `todo` (names from `unit.works()`) of `unit` and yield (work, rows)
     as each completes. The adapter is built and, when a suite needs it, fitted or loaded from the
     model cache even if its fit is already recorded. Never raises for a failing adapter: its units
-    of work get one 'failed: ...' row each (a missing dependency 'skipped: ...').
+    of work get one 'failed: ...' row each (a missing dependency 'skipped: ...'); an interrupt,
+    wrapped or not, is raised as a KeyboardInterrupt.
 
     In this process, unless `settings.unit_limits` is set: then the whole unit runs in a fresh
     process under those limits (`harness.isolation`), every row gains `peak_rss_mib` (the peak
@@ -119,19 +123,20 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
                                  "iterations": report.iterations, "loss": report.loss, "message": report.message,
                                  "work_s": time.perf_counter() - start}]
         except Exception as exc:  # noqa: BLE001 - recorded as rows, the run goes on
-            print(f"[swingbench] {unit.label}: {_failure(exc)}", file=sys.stderr)
+            status = _failure(exc)
+            print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
             traceback.print_exc()
             for work in todo:
-                yield work, [{"suite": work, **base, "status": _failure(exc)}]
+                yield work, [{"suite": work, **base, "status": status}]
             return
         for suite in suites:
             start = time.perf_counter()
             try:
                 rows = [{"status": skipped[suite]}] if suite in skipped else SUITES[suite].run(solver, unit.case, settings)
             except Exception as exc:  # noqa: BLE001
-                print(f"[swingbench] {unit.label} {suite}: {_failure(exc)}", file=sys.stderr)
-                traceback.print_exc()
                 rows = [{"status": _failure(exc)}]
+                print(f"[swingbench] {unit.label} {suite}: {rows[0]['status']}", file=sys.stderr)
+                traceback.print_exc()
             work_s = time.perf_counter() - start
             yield suite, [{"suite": suite, **base, "status": "ok", **row, "work_s": work_s} for row in rows]
 
@@ -256,58 +261,3 @@ def run_suites(
     check_units(units, settings)
     done = store.prepare_resume().completed if resume else set()
     return execute(units, settings, store, progress=progress, done=done)
-
-
-def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | None = None,
-                 ) -> tuple[RowStore, StoreContents | None]:
-    """The RowStore of the output folder `out`, checked before any work: a usable folder (made if
-    missing), writable. Without `resume` earlier rows are removed; with it, the run being continued
-    must have recorded the values `same` in `out/metadata.json` (rows of other settings would mix),
-    and an interrupted unit is set aside (`RowStore.prepare_resume`). Problems exit with one line
-    (`UsageError`)."""
-    out = Path(out)
-    if resume and same:
-        _check_same_run(out / "metadata.json", same, command)
-    try:  # inside a folder the user cannot enter, even exists() raises (PermissionError)
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"swingbench {command}: --out {out} is a file, not a folder")
-        out.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=out):
-            pass
-    except OSError as exc:
-        raise UsageError(f"swingbench {command}: cannot write to --out {out}: {exc.strerror or exc}") from None
-    store = RowStore(out)
-    if not resume:
-        store.clear()
-        return store, None
-    try:
-        contents = store.prepare_resume()
-    except ValueError as exc:
-        raise UsageError(f"swingbench {command}: {exc}") from None
-    if contents.incomplete_rows or contents.bad_lines:
-        print(f"[swingbench] {store.path}: set aside what an interrupted run left unfinished in "
-              f"{store.set_aside_path.name}; its units run again", file=sys.stderr)
-    return store, contents
-
-
-def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
-    """UsageError when the metadata at `path` records another value of a key of `same` (an
-    unreadable or missing file, or a missing key, is no evidence either way)."""
-    try:
-        recorded = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
-    if not isinstance(recorded, dict):
-        return
-    for key, value in same.items():
-        if key in recorded and recorded[key] != json.loads(json.dumps(value, default=str)):
-            raise UsageError(f"swingbench {command}: --resume continues the run in {path.parent}, made with "
-                             f"{key} {recorded[key]!r}, not {value!r}: run it with the same options, or "
-                             "without --resume")
-
-
-def interrupted_message(store: RowStore, argv: list[str]) -> str:
-    """The one line printed on Ctrl-C: what was kept and the command that continues."""
-    kept = len(store.read().completed)
-    again = shlex.join(["swingbench", *argv, *([] if "--resume" in argv else ["--resume"])])
-    return f"[swingbench] interrupted: {kept} completed unit(s) of work kept in {store.path}; continue with: {again}"

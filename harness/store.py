@@ -2,9 +2,10 @@
 
 A unit of work (one suite of one solver specification on one case, or its fit) is recorded by one
 write of its rows followed by a completion record, `{"_complete": {<unit key>}, "rows": n}`, flushed
-and synced. The resume rule follows: a unit is done when its completion record is on disk, however
-many of its rows are. A crash leaves at most a torn tail after the last completion record; it is
-detected, set aside in `rows.jsonl.set-aside` (never deleted) and its unit measured again.
+and synced. The resume rule follows: a unit is done when its completion record is on disk and the
+lines since the record before it hold its n rows. A crash leaves at most a torn tail after the last
+completion record; a damaged disk or an edit can spoil a row anywhere. Either way `--resume` sets
+the lines aside in `rows.jsonl.set-aside` (never deleted) and measures their units again.
 """
 
 from __future__ import annotations
@@ -34,26 +35,83 @@ def unit_key(row: dict) -> tuple:
 class StoreContents(NamedTuple):
     """What `rows.jsonl` holds: the rows of completed units in file order, the keys of those units,
     the number of lines that are not JSON objects (skipped), the number of rows after the last
-    completion record (an interrupted unit: not returned), and whether the file predates completion
-    records (then every row counts, each unit as complete)."""
+    completion record (an interrupted unit: not returned), whether the file predates completion
+    records (then every row counts, each unit as complete), and the number of damaged units: those
+    whose completion record counts other than the rows since the record before it (a row spoilt or
+    lost; their rows are not returned, their units not complete)."""
 
     rows: list[dict]
     completed: set[tuple]
     bad_lines: int
     incomplete_rows: int
     legacy: bool
+    damaged_units: int = 0
+
+    def problems(self) -> str | None:
+        """What the file holds that is not a whole unit, in words, or None when it holds nothing else."""
+        parts = [f"{self.bad_lines} line(s) that are not JSON rows"] if self.bad_lines else []
+        if self.damaged_units:
+            parts.append(f"the rows of {self.damaged_units} unit(s) that lost a row")
+        if self.incomplete_rows:
+            parts.append(f"{self.incomplete_rows} row(s) of an unfinished unit")
+        return " and ".join(parts) or None
 
     def warning(self, path: Path) -> str | None:
         """One line on what was skipped, or None when nothing was."""
-        parts = [f"{self.bad_lines} line(s) that are not JSON rows"] if self.bad_lines else []
-        if self.incomplete_rows:
-            parts.append(f"{self.incomplete_rows} row(s) of an unfinished unit")
-        return f"{path}: skipped {' and '.join(parts)}" if parts else None
+        problems = self.problems()
+        return f"{path}: skipped {problems}" if problems else None
+
+
+class _Segment(NamedTuple):
+    """The non-blank lines of `rows.jsonl` after one completion record up to and including the
+    next (`record`: that record; None for the lines after the last one): those that are rows, and
+    the indices in `lines` of those that are neither rows nor a completion record."""
+
+    lines: list[bytes]
+    rows: list[dict]
+    bad: list[int]
+    record: dict | None
+
+    @property
+    def whole(self) -> bool:
+        """A completion record whose row count (when it gives one) is that of the rows before it."""
+        count = self.record.get("rows") if self.record is not None else None
+        return self.record is not None and (not isinstance(count, int) or count == len(self.rows))
+
+
+def _segments(data: bytes) -> tuple[list[_Segment], bool]:
+    """`data` cut after each completion record, and whether any line is meant as a completion
+    record (a file that has none predates them)."""
+    segments: list[_Segment] = []
+    current = _Segment([], [], [], None)
+    markers = False
+    for line in data.split(b"\n"):
+        if not line.strip():
+            continue
+        try:
+            item = json.loads(line)
+        except ValueError:  # JSONDecodeError and UnicodeDecodeError
+            item = None
+        if isinstance(item, dict) and _COMPLETE in item:
+            markers = True
+        if isinstance(item, dict) and isinstance(item.get(_COMPLETE), dict):
+            current.lines.append(line)
+            segments.append(current._replace(record=item))
+            current = _Segment([], [], [], None)
+            continue
+        if isinstance(item, dict) and _COMPLETE not in item:
+            current.rows.append(item)
+        else:  # not JSON, not an object, or a completion record without a key
+            current.bad.append(len(current.lines))
+        current.lines.append(line)
+    if current.lines:
+        segments.append(current)
+    return segments, markers
 
 
 class RowStore:
     """The rows of one results folder. `record(key, rows)` appends a unit; `read()` parses the file
-    tolerantly; `prepare_resume()` sets aside what an interrupted run left unfinished.
+    tolerantly; `prepare_resume()` sets aside whatever is not a whole unit.
 
     `create=False` (for readers such as `swingbench report`) never makes the folder."""
 
@@ -71,7 +129,7 @@ class RowStore:
         lines = [json.dumps(row, default=_jsonable, allow_nan=True) for row in rows]
         lines.append(json.dumps({_COMPLETE: key, "rows": len(rows)}, default=_jsonable))
         data = ("\n".join(lines) + "\n").encode("utf-8")
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)  # less the umask, as open() does
         try:
             view = memoryview(data)
             while view:
@@ -84,32 +142,17 @@ class RowStore:
         """Parse the file: undecodable or non-object lines are counted and skipped."""
         if not self.path.exists():
             return StoreContents([], set(), 0, 0, legacy=False)
-        done, pending, completed = [], [], set()
-        bad = 0
-        markers = False
-        for line in self.path.read_bytes().split(b"\n"):
-            if not line.strip():
-                continue
-            try:
-                item = json.loads(line)
-            except ValueError:  # JSONDecodeError and UnicodeDecodeError
-                bad += 1
-                continue
-            if not isinstance(item, dict):
-                bad += 1
-            elif _COMPLETE in item:
-                markers = True
-                if isinstance(item[_COMPLETE], dict):
-                    completed.add(unit_key(item[_COMPLETE]))
-                    done.extend(pending)
-                else:
-                    bad += 1
-                pending = []
-            else:
-                pending.append(item)
+        segments, markers = _segments(self.path.read_bytes())
+        bad = sum(len(segment.bad) for segment in segments)
         if not markers:  # written before completion records: every row stands
-            return StoreContents(pending, {unit_key(r) for r in pending}, bad, 0, legacy=bool(pending))
-        return StoreContents(done, completed, bad, len(pending), legacy=False)
+            rows = [row for segment in segments for row in segment.rows]
+            return StoreContents(rows, {unit_key(r) for r in rows}, bad, 0, legacy=bool(rows))
+        whole = [segment for segment in segments if segment.whole]
+        tail = segments[-1] if segments and segments[-1].record is None else None
+        return StoreContents([row for segment in whole for row in segment.rows],
+                             {unit_key(segment.record[_COMPLETE]) for segment in whole}, bad,
+                             len(tail.rows) if tail else 0, legacy=False,
+                             damaged_units=sum(s.record is not None and not s.whole for s in segments))
 
     def rows(self) -> list[dict]:
         """The rows of completed units (see `read`)."""
@@ -119,48 +162,29 @@ class RowStore:
         return pd.DataFrame(self.rows())
 
     def prepare_resume(self) -> StoreContents:
-        """Cut the file back to its last completion record, appending whatever followed it (a torn
-        line, the rows of an interrupted unit) to `rows.jsonl.set-aside`; return the contents.
-        Idempotent: on a file that ends with a completion record it changes nothing. Refuses a file
-        written before completion records (ValueError): which of its units finished is unknown."""
+        """Keep in the file only the whole units (`StoreContents`) and append every other line (a
+        torn line, the rows of an interrupted unit, the surviving lines of a unit that lost a row, a
+        line that is not a row) to `rows.jsonl.set-aside`, synced before the file is replaced
+        whole; return the contents as they were. Idempotent: on a file of whole units it changes
+        nothing. Refuses a file written before completion records (ValueError): which of its units
+        finished is unknown."""
         contents = self.read()
         if contents.legacy:
             raise ValueError(f"{self.path} was written by an older swingbench (no completion records): "
                              "which units finished is unknown; run again without --resume")
-        if not self.path.exists():
+        if contents.problems() is None:
             return contents
-        data = self.path.read_bytes()
-        end = _end_of_last_record(data)
-        if end < len(data):
-            with open(self.set_aside_path, "ab") as fh:
-                fh.write(data[end:] if data.endswith(b"\n") else data[end:] + b"\n")
-                fh.flush()
-                os.fsync(fh.fileno())
-            with open(self.path, "r+b") as fh:
-                fh.truncate(end)
-                fh.flush()
-                os.fsync(fh.fileno())
+        keep: list[bytes] = []
+        aside: list[bytes] = []
+        for segment in _segments(self.path.read_bytes())[0]:
+            for i, line in enumerate(segment.lines):
+                (keep if segment.whole and i not in segment.bad else aside).append(line)
+        with open(self.set_aside_path, "ab") as fh:
+            fh.write(b"\n".join(aside) + b"\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        atomic_write(self.path, b"".join(line + b"\n" for line in keep))
         return contents
-
-    def clear(self) -> None:
-        if self.path.exists():
-            self.path.unlink()
-
-
-def _end_of_last_record(data: bytes) -> int:
-    """Byte offset just after the last whole completion-record line of `data` (0 if none)."""
-    end = len(data) if data.endswith(b"\n") else data.rfind(b"\n") + 1
-    while end > 0:
-        start = data.rfind(b"\n", 0, end - 1) + 1
-        line = data[start:end]
-        try:
-            item = json.loads(line)
-        except ValueError:
-            item = None
-        if isinstance(item, dict) and isinstance(item.get(_COMPLETE), dict):
-            return end
-        end = start
-    return 0
 
 
 def _jsonable(value):

@@ -190,10 +190,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     from harness import executors
     from harness.provenance import metadata
-    from harness.runner import execute, interrupted_message, open_results, outcome
+    from harness.results_folder import interrupted_message, open_results
+    from harness.runner import execute, outcome
     from harness.store import atomic_write
 
-    store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()})
+    store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()},
+                                   overwrite=args.overwrite)
     settings = sweep_settings(args.retrain)
     executor = (f"dask scheduler {args.scheduler}" if args.scheduler else
                 f"dask LocalCluster, {args.workers} worker process(es)" if args.dask_local else

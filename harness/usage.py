@@ -1,11 +1,12 @@
-"""The one way a command refuses bad input before it measures anything.
+"""How a command ends other than by measuring: the one way it refuses bad input before it
+measures anything (`UsageError`), and what counts as an interrupt (`raise_if_interrupted`).
 
 Only the standard library: the CLI's parser imports it.
 """
 
 from __future__ import annotations
 
-__all__ = ["EXIT_FAILED", "EXIT_USAGE", "UsageError"]
+__all__ = ["EXIT_FAILED", "EXIT_USAGE", "UsageError", "raise_if_interrupted"]
 
 EXIT_USAGE = 2  # argparse's status for a bad command line: bad input of any kind, before measuring
 EXIT_FAILED = 1  # the command ran, and some unit of work failed (or was lost): its rows say which
@@ -25,3 +26,21 @@ class UsageError(SystemExit):
 
     def __str__(self) -> str:
         return self.message
+
+
+def raise_if_interrupted(exc: BaseException) -> None:
+    """Raise KeyboardInterrupt (from `exc`) when `exc` is a KeyboardInterrupt or was raised from one
+    or while handling one (anywhere along its `__cause__` and `__context__` links); else return.
+    For code that turns exceptions into results: compiled code turns a Ctrl-C during a call into
+    another exception (numba's dispatcher raises `SystemError: CPUDispatcher(...) returned a result
+    with an exception set` from the KeyboardInterrupt), which is an interrupt, not a result."""
+    seen: set[int] = set()
+    todo: list[BaseException | None] = [exc]
+    while todo:
+        link = todo.pop()
+        if link is None or id(link) in seen:
+            continue
+        if isinstance(link, KeyboardInterrupt):
+            raise KeyboardInterrupt from exc
+        seen.add(id(link))
+        todo += [link.__cause__, link.__context__]

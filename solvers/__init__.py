@@ -197,12 +197,20 @@ def fault_adapters() -> list[str]:
     return [name for name, cls in SOLVERS.items() if cls is not None and cls.handles_faults]
 
 
-def make_solver(name: str, case: Case, config: str = "default", **options: Any) -> AbstractSolver:
-    """Instantiate the adapter `name` for `case` with a named `config` and option overrides. An
-    adapter without `handles_faults` refuses a fault case (ValueError naming those that do)."""
+def make_solver(name: str, case: Case | str, config: str = "default", **options: Any) -> AbstractSolver:
+    """Instantiate the adapter `name` for `case` (a `Case`, or the name of one in
+    `systems.cases.CASES`) with a named `config` and option overrides. An unknown case name is a
+    ValueError listing the known ones; an adapter without `handles_faults` refuses a fault case
+    (ValueError naming those that do)."""
     cls = solver_class(name)
     if cls is None:
         raise SolverUnavailable(f"{name}: {UNAVAILABLE[name]}")
+    if isinstance(case, str):
+        from systems.cases import CASES  # importing systems registers every case
+
+        if case not in CASES:
+            raise ValueError(f"unknown case {case!r}; known: {', '.join(CASES)}")
+        case = CASES[case]
     if case.fault is not None and not cls.handles_faults:
         raise ValueError(f"{name} does not integrate fault cases (case {case.name!r} switches its network at the "
                          f"clearing time); adapters that do: {', '.join(fault_adapters()) or 'none'}")

@@ -102,6 +102,14 @@ def test_unknown_solver_lists_known_ones():
 
 
 @pytest.mark.parametrize("name", ALL_SOLVERS)
+def test_a_case_is_given_as_a_case_or_by_its_name(name):
+    require(name)
+    assert make_solver(name, "wscc9", **small_options(name)).case is CASES["wscc9"]
+    with pytest.raises(ValueError, match="^unknown case 'ieee300'; known: smib-inference, .*wscc9"):
+        make_solver(name, "ieee300")
+
+
+@pytest.mark.parametrize("name", ALL_SOLVERS)
 def test_identify_rejects_bad_observations(name):
     require(name)
     solver = make_solver(name, SMIB_INFERENCE, **small_options(name))

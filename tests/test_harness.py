@@ -122,12 +122,14 @@ def test_python_driven_adapters_sweep_fewer_tolerances_on_networks_only():
     assert replace(settings, network_wp_rtols=None).sweep_rtols(False, CASES["wscc9"]) == settings.wp_rtols
 
 
-def test_latency_extrapolates_a_query_at_least_linearly_and_faster_when_it_grows_faster():
+def test_latency_estimates_a_query_from_the_last_measured_one_linearly_and_never_faster():
     from harness.suites.latency import _estimate
 
     assert _estimate("throughput", 1000, {}) is None
     assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 0.5)]}) == pytest.approx(5.0)
-    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 10.0)]}) == pytest.approx(1000.0)
+    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 10.0)]}) == pytest.approx(100.0)
+    # one call slowed by a busy machine (1 ms -> 0.1 s): 0.1 s x 100, not 0.1 s x 100^3
+    assert _estimate("throughput", 1000, {"throughput": [(1, 1e-3), (10, 0.1)]}) == pytest.approx(10.0)
     assert _estimate("points batch", 100, {"single point": [(1, 0.01), (1, 0.02)]}) == pytest.approx(2.0)
 
 
@@ -187,6 +189,16 @@ def test_cli_help(capsys):
     assert "--quick" in capsys.readouterr().out
 
 
+def test_cli_version_is_the_one_in_pyproject(capsys):
+    import tomllib
+    from pathlib import Path
+
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out == f"swingbench {pyproject['project']['version']}\n"
+
+
 def test_time_at_accuracy_interpolates_on_the_pareto_front():
     from harness.analysis import break_even, pareto_front, time_at_accuracy
 
@@ -202,12 +214,13 @@ def test_time_at_accuracy_interpolates_on_the_pareto_front():
     assert break_even(10.0, 0.1, 0.5) == float("inf")
 
 
-def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
-    """Synthetic rows (no measurement): the report's verdicts follow the numbers."""
+def _report_rows() -> list[dict]:
+    """Synthetic rows of a trained adapter and a classical one on the SMIB: fit, accuracy, latency
+    and work-precision."""
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0, "trains": True}
     ode = {**base, "solver": "scipy-odeint", "config": "default", "seed": -1, "trains": False}
-    rows = [
+    return [
         {"suite": "fit", **pinn, "fit_s": 50.0, "iterations": 100, "loss": 1e-6, "message": ""},
         {"suite": "fit", **ode, "fit_s": 1e-5, "iterations": 0, "loss": np.nan, "message": ""},
         {"suite": "accuracy", **pinn, "quantity": "delta", "against": "reference", "rel_l2": 1e-3, "max_abs": 1e-3,
@@ -222,6 +235,11 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
         *({"suite": "work_precision", **ode, "rtol": r, "atol": r * 1e-3, "rel_l2_delta": e, "median_s": s}
           for r, e, s in ((1e-3, 1e-2, 0.001), (1e-6, 1e-5, 0.004))),
     ]
+
+
+def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
+    """Synthetic rows (no measurement): the report's verdicts follow the numbers."""
+    rows = _report_rows()
     (tmp_path / "figure3-wscc9.png").write_bytes(b"a plot of an earlier run's case")
     (tmp_path / "notes.png").write_bytes(b"not a plot of ours")
     markdown = write_report(rows, tmp_path, {"threads": 2}, plots=True)
@@ -233,6 +251,19 @@ def test_report_compares_a_trained_adapter_with_the_classical_ones(tmp_path):
     assert "toy-pinn default" in markdown and "scipy-odeint default" in markdown
     assert (tmp_path / "work_precision.png").exists() and (tmp_path / "tables.tex").exists()
     assert "![work_precision](work_precision.png)" in (tmp_path / "README.md").read_text()
+
+
+def test_two_reports_of_the_same_rows_are_the_same_bytes(tmp_path):
+    """PDFs included: they carry no creation date (PDF dates have whole seconds: the reports are
+    written more than a second apart)."""
+    def report(folder):
+        write_report(_report_rows(), folder, {"threads": 2}, plots=True)
+        return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+    first = report(tmp_path / "a")
+    time.sleep(1.1)
+    assert {"work_precision.pdf", "work_precision.png", "tables.md"} <= set(first)
+    assert report(tmp_path / "b") == first
 
 
 def test_identification_observations_from_the_reference_or_the_papers_data():

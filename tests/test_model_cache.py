@@ -152,6 +152,19 @@ def test_a_hit_is_the_recorded_report_and_the_same_model(entry, capsys):
     assert sorted(p.name for p in entry.settings.cache_dir.iterdir()) == entry.names  # nothing moved
 
 
+def test_a_ctrl_c_while_an_entry_loads_leaves_it_in_place(entry, monkeypatch):
+    """Inside compiled code the KeyboardInterrupt comes wrapped (numba: a SystemError from it)."""
+    solver = _solver()
+
+    def interrupted(base):
+        raise SystemError("returned a result with an exception set") from KeyboardInterrupt()
+
+    monkeypatch.setattr(solver, "load", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        fit_or_load(solver, entry.settings)
+    assert sorted(p.name for p in entry.settings.cache_dir.iterdir()) == entry.names  # nothing moved
+
+
 def test_a_store_marks_the_entry_complete_last(entry, monkeypatch):
     def fail(path):
         raise OSError("disk full")

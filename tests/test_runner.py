@@ -57,8 +57,8 @@ def counting(monkeypatch):
     def suite(name: str, n: int):
         def run(solver, case, settings):
             calls.append(name)
-            if getattr(run, "interrupt", False):
-                raise KeyboardInterrupt
+            if getattr(run, "interrupt", None) is not None:
+                raise run.interrupt
             return [{"value": float(i)} for i in range(n)]
         return run
 
@@ -112,6 +112,42 @@ def test_bad_lines_are_counted_and_skipped(tmp_path):
     assert "skipped 3 line(s) that are not JSON rows" in contents.warning(store.path)
 
 
+@pytest.mark.parametrize("replacement", [b'{"suite": "one", "val', None], ids=["spoilt", "lost"])
+def test_a_completed_unit_that_lost_a_row_is_set_aside_and_measured_again(tmp_path, counting, capsys, replacement):
+    """Its first row torn in place, or gone: the unit's record counts 2 rows, 1 is left."""
+    argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress",
+            "off", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    store = RowStore(tmp_path)
+    lines = store.path.read_bytes().splitlines()
+    assert [json.loads(line).get("suite") for line in lines[2:5]] == ["one", "one", None]  # after fit's row and record
+    lines[2:3] = [] if replacement is None else [replacement]
+    unit = lines[2:4 if replacement is None else 5]  # what is left of unit `one`, up to its record
+    store.path.write_bytes(b"".join(line + b"\n" for line in lines))
+    contents = store.read()
+    assert contents.damaged_units == 1 and [r["suite"] for r in contents.rows] == ["fit", "two"]
+    assert "the rows of 1 unit(s) that lost a row" in contents.warning(store.path)
+    capsys.readouterr()
+    assert main([*argv, "--resume"]) == 0
+    assert [r["suite"] for r in store.rows()] == ["fit", "two", "one", "one"] and counting == ["one", "two", "one"]
+    assert store.set_aside_path.read_bytes().splitlines() == unit
+    err = capsys.readouterr().err
+    assert f"{store.path}: set aside " in err and "the rows of 1 unit(s) that lost a row in rows.jsonl.set-aside" in err
+    before = store.path.read_bytes()
+    store.prepare_resume()
+    assert store.path.read_bytes() == before
+
+
+def test_a_line_that_is_not_a_row_is_set_aside_and_its_unit_kept(tmp_path):
+    store = RowStore(tmp_path)
+    store.record(KEY, [{**KEY, "v": 1}])
+    whole = store.path.read_bytes()
+    store.path.write_bytes(b"not json\n" + whole)
+    contents = store.prepare_resume()
+    assert contents.bad_lines == 1 and contents.damaged_units == 0 and contents.rows == [{**KEY, "v": 1}]
+    assert store.path.read_bytes() == whole and store.set_aside_path.read_bytes() == b"not json\n"
+
+
 def test_rows_from_before_completion_records_are_read_but_not_resumed(tmp_path):
     store = RowStore(tmp_path)
     store.path.write_text(json.dumps({**KEY, "v": 1}) + "\n")
@@ -156,8 +192,23 @@ def test_failed_units_are_results_and_are_kept(tmp_path, counting, monkeypatch):
     assert store.path.read_bytes() == before
 
 
-def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
-    SUITES["two"].run.interrupt = True
+def _raised(exc: BaseException, cause: BaseException | None = None, context: BaseException | None = None):
+    exc.__cause__, exc.__context__ = cause, context
+    return exc
+
+
+NUMBA_INTERRUPT = "CPUDispatcher(<function points_2_0_3>) returned a result with an exception set"
+
+
+@pytest.mark.parametrize("interrupt", [
+    KeyboardInterrupt(),
+    _raised(SystemError(NUMBA_INTERRUPT), cause=KeyboardInterrupt()),  # numba's dispatcher
+    _raised(RuntimeError("while handling"), context=KeyboardInterrupt()),
+    _raised(ValueError("wrapped twice"), cause=_raised(SystemError(NUMBA_INTERRUPT), context=KeyboardInterrupt())),
+], ids=["plain", "numba-cause", "context", "nested"])
+def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys, interrupt):
+    """However compiled code wraps the KeyboardInterrupt: no failed row, and --resume measures it."""
+    SUITES["two"].run.interrupt = interrupt
     argv = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "two", "--quick", "--progress", "off",
             "--out", str(tmp_path)]
     assert main(argv) == 130
@@ -165,9 +216,56 @@ def test_ctrl_c_stops_with_one_line_and_exit_130(tmp_path, counting, capsys):
     assert len(err) == 1 and err[0].startswith("[swingbench] interrupted: 2 completed unit(s) of work kept")
     assert err[0].endswith(" ".join(["swingbench", *argv, "--resume"]))
     assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one"]
-    SUITES["two"].run.interrupt = False
+    SUITES["two"].run.interrupt = None
     assert main([*argv, "--resume"]) == 0
     assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one", "two"]
+
+
+# ------------------------------------------------------------------------- a folder that holds rows
+
+AGAIN = ["run", "--case", "smib-inference", "--solver", "counting", "--suite", "one", "--quick", "--progress", "off"]
+
+
+def test_a_rerun_into_a_folder_with_rows_is_refused_without_resume_or_overwrite(tmp_path, counting, capsys):
+    assert main([*AGAIN, "--out", str(tmp_path)]) == 0
+    before = sorted(p.name for p in tmp_path.iterdir())
+    rows = (tmp_path / "rows.jsonl").read_bytes()
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main([*AGAIN, "--out", str(tmp_path)])
+    assert info.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        (f"swingbench run: --out {tmp_path} holds the rows of an earlier run (rows.jsonl): add --resume to continue "
+         "it, or --overwrite to start again with its rows moved aside")]
+    assert (tmp_path / "rows.jsonl").read_bytes() == rows and sorted(p.name for p in tmp_path.iterdir()) == before
+    assert counting == ["one"]  # measured once
+
+
+def test_overwrite_moves_the_earlier_rows_and_metadata_aside(tmp_path, counting, capsys):
+    runs = []  # (rows.jsonl, metadata.json) of each run
+    for again in ([], ["--overwrite"], ["--overwrite"]):  # within a second or not: a name of its own each
+        assert main([*AGAIN, *again, "--out", str(tmp_path)]) == 0
+        runs.append(((tmp_path / "rows.jsonl").read_bytes(), (tmp_path / "metadata.json").read_bytes()))
+    aside = {p.read_bytes(): p for p in tmp_path.glob("rows.*.jsonl")}
+    assert set(aside) == {rows for rows, _ in runs[:2]} and len(list(tmp_path.glob("*.*.json*"))) == 4
+    for rows, meta in runs[:2]:
+        stamp = aside[rows].name.removeprefix("rows.").removesuffix(".jsonl")
+        assert (tmp_path / f"metadata.{stamp}.json").read_bytes() == meta
+    assert [r["suite"] for r in RowStore(tmp_path).rows()] == ["fit", "one", "one"]  # the last run's only
+    first = aside[runs[0][0]].name
+    assert f"[swingbench] --overwrite: the earlier run's rows.jsonl moved to {first}" in capsys.readouterr().err
+
+
+def test_ctrl_c_after_overwrite_is_continued_by_resume_alone(tmp_path, counting, capsys):
+    assert main([*AGAIN, "--out", str(tmp_path)]) == 0
+    SUITES["one"].run.interrupt = KeyboardInterrupt()
+    assert main([*AGAIN, "--overwrite", "--out", str(tmp_path)]) == 130
+    SUITES["one"].run.interrupt = None
+    again = capsys.readouterr().err.strip().splitlines()[-1].split("continue with: ")[1]
+    assert again == " ".join(["swingbench", *AGAIN, "--out", str(tmp_path), "--resume"])
+    with pytest.raises(SystemExit) as info:
+        main([*AGAIN, "--overwrite", "--resume", "--out", str(tmp_path)])
+    assert info.value.code == 2  # argparse: not both
 
 
 # --------------------------------------------------------------------------------------------- CLI

@@ -3,8 +3,6 @@ and a batch of single-point queries at scattered (t1, P1) in one call."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from harness.runs import Settings
@@ -55,18 +53,18 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
 
 
 def _estimate(kind: str, n: int, timed: dict[str, list[tuple[int, float]]]) -> float | None:
-    """Seconds a query of `kind` and size `n` should take, extrapolated from the timed queries of
-    its kind (a batch of points from the single point): from the last one, growing as n^p with p
-    the slope of the last two on log-log axes and at least 1 (a stacked system's implicit solve
-    can grow faster than linearly), or None when nothing of the kind was timed yet."""
+    """Seconds a query of `kind` and size `n` (trajectories or points) should take: the last timed
+    query of its kind (a batch of points: the last single point, the latest t1) times the ratio of
+    the sizes, n / its size; None when nothing of the kind was timed yet. Linear in the work and
+    never more, so an estimate is a measured time times that ratio: a time inflated by a busy
+    machine cannot compound into a far larger one. A query whose cost grows faster (a stacked
+    system's implicit solve) is underestimated and then measured: a call over `max_call_s` is
+    timed once, and the next query is estimated from that measured time."""
     points = timed.get("single point" if kind == "points batch" else kind)
     if not points:
         return None
     size, seconds = points[-1]
-    power = 1.0
-    if len(points) > 1 and points[-2][0] < size and points[-2][1] > 0:
-        power = max(1.0, math.log(seconds / points[-2][1]) / math.log(size / points[-2][0]))
-    return seconds * (n / size) ** power
+    return seconds * n / size
 
 
 def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
