@@ -34,9 +34,14 @@ def fit_for_tests(solver) -> None:
     solver.fit()
 
 
-def require(name: str) -> None:
+def require(name: str, case: Case = SMIB_INFERENCE) -> None:
+    """Skip unless adapter `name` is installed and one of its configs is made for `case`'s kind
+    (the SMIB by default: the contract tests' case)."""
     if SOLVERS[name] is None:
         pytest.skip(UNAVAILABLE[name])
+    cls = SOLVERS[name]
+    if not any(cls.made_for(config, case.kind, case.scenario) for config in cls.CONFIGS):
+        pytest.skip(f"{name} is made for no {case.kind} case ({case.name})")
 
 
 @pytest.fixture(scope="session")

@@ -1,0 +1,217 @@
+"""The reduced-output PINN adapter (`reduced-pinn`): a multi-machine case's angles as k basis
+coefficients of a time-marching JAX network, for grids of hundreds to thousands of machines, where
+a network with one output per machine does not train (`solvers.pinn.reduced` has the model).
+
+Configs: `default` (hybrid: a POD basis of numba-rk snapshots over the P1 range, trained on those
+snapshots plus the projected physics residual) and `physics` (no solver data: the basis is the
+linearised swing modes at the equilibrium plus the static response to P1, the loss the projected
+physics residual alone).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, ClassVar, Literal
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport
+from solvers.identification import Estimate
+from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
+from solvers.pinn.optim import levenberg_marquardt
+from solvers.pinn.reduced import (
+    Layout,
+    ReducedModel,
+    WindowData,
+    init_weights,
+    query_functions,
+    walk_starts,
+    window_functions,
+)
+from solvers.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
+from solvers.threads import configure_threads
+from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
+from systems.model import coupling
+
+__all__ = ["ReducedOptions", "ReducedPinn", "linear_basis"]
+
+
+class ReducedOptions(OptionSchema):
+    """basis "pod" (snapshots' POD) or "linear" (linearised swing modes, `linear_basis`); modes k
+    (None: the fewest POD modes keeping all but `pod_tolerance` of the snapshots' squared norm, at
+    most `max_modes`; the linear basis takes `max_modes`); snapshots: numba-rk trajectories at that
+    many Chebyshev-Lobatto P1 values (>= 2), every `snapshot_dt` s, DOP853 at `snapshot_rtol`;
+    data: train on them (False: physics alone); window (s): the time-marching windows' length
+    (the horizon is cut into ceil(t_final / window) equal windows); hidden_layers x width tanh;
+    n_f collocation points per window where the projected physics residual is evaluated (its
+    P_e is the full network's, n^2 per point), weighted by `physics_weight` (rad/s^2 against the
+    data's rad); max_iterations Levenberg-Marquardt iterations per window; max_seconds (None: no
+    limit) the whole fit's budget, shared among the windows left; seed draws weights and points."""
+
+    basis: Literal["pod", "linear"] = "pod"
+    modes: PositiveInt | None = None
+    pod_tolerance: PositiveFloat = 1e-10
+    max_modes: PositiveInt = 60
+    snapshots: PositiveInt = 9
+    snapshot_dt: PositiveFloat = 0.05
+    snapshot_rtol: PositiveFloat = 1e-9
+    data: StrictBool = True
+    window: PositiveFloat = 1.0
+    hidden_layers: PositiveInt = 2
+    width: PositiveInt = 20
+    n_f: NonNegativeInt = 16
+    physics_weight: PositiveFloat = 0.01
+    max_iterations: PositiveInt = 60
+    max_seconds: PositiveFloat | None = None
+    seed: NonNegativeInt = 0
+    threads: PositiveInt = 2
+
+
+def linear_basis(case: Case, modes: int) -> Basis:
+    """`modes` orthonormal directions from the swing equation alone: the static response K^+ e_1
+    to generator 1's power and the `modes` - 1 slowest modes of M^-1 K (K = dP_e/d delta at delta0,
+    symmetrised), K the network's synchronising matrix. energy is NaN (no snapshots)."""
+    k = coupling(case)
+    delta0 = np.asarray(case.delta0, np.float64)
+    diff = delta0[:, None] - delta0[None, :]
+    X = k.C * np.sin(diff) - k.S * np.cos(diff)  # dP_e,i / d delta_j, i != j
+    np.fill_diagonal(X, 0.0)
+    K = X - np.diag(X.sum(1) + k.c_inf * np.sin(delta0) - k.s_inf * np.cos(delta0))
+    K = -0.5 * (K + K.T)  # the restoring (positive semi-definite) part
+    m = np.asarray(case.m, np.float64)
+    root = 1.0 / np.sqrt(m)
+    _, vectors = np.linalg.eigh(root[:, None] * K * root[None, :])
+    slow = root[:, None] * vectors[:, :max(modes - 1, 0)]
+    static = np.linalg.lstsq(K, np.eye(case.n)[0], rcond=None)[0]
+    q, _ = np.linalg.qr(np.column_stack([static, slow])[:, :modes])
+    return Basis(np.ascontiguousarray(q), float("nan"))
+
+
+class ReducedPinn(AbstractSolver):
+    """A reduced-output PINN on JAX, float64 (`solvers.pinn.reduced`): delta = delta0 + U a(t, P1),
+    omega = U a', the coefficients a (k,) from a chain of window networks of (tau, P1).
+
+    `fit` makes the basis (and the snapshots, whose integration counts in its time), then trains
+    the windows in turn by Levenberg-Marquardt; its message gives the seconds of the snapshots and
+    of the basis apart, k and the energy kept. Multi-machine step cases only. Queries: one jitted
+    XLA function a shape (grid or points), every P1 walked through the windows. Shapes as the
+    contract: (len(P1), len(t), n) and (n_s, n). Deterministic for a seed and thread count."""
+
+    name: ClassVar[str] = "reduced-pinn"
+    SCHEMA = ReducedOptions
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {
+        "default": {},
+        "physics": {"basis": "linear", "data": False, "n_f": 64, "physics_weight": 1.0, "max_modes": 40},
+    }
+    CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {c: frozenset({NETWORK}) for c in CONFIGS}
+    CASE_SCENARIOS: ClassVar[dict[str, frozenset]] = {c: frozenset({STEP_SCENARIO}) for c in CONFIGS}
+    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {c: frozenset({LARGE_SYSTEMS}) for c in CONFIGS}
+    bounded_domain: ClassVar[bool] = True
+    trains: ClassVar[bool] = True
+    takes_threads: ClassVar[bool] = True
+    compiled: ClassVar[bool] = True
+    QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads"})
+
+    def _check_options(self) -> None:
+        options, case = self.options, self.case
+        if case.kind != NETWORK:
+            raise ValueError(f"{self.name} is made for multi-machine cases; case {case.name!r} is a {case.kind} case")
+        if options["snapshots"] < 2:
+            raise ValueError(f"{self.name}: option snapshots must be at least 2 (a basis over the P1 range), "
+                             f"got {options['snapshots']}")
+        if options["modes"] is not None and options["modes"] > case.n:
+            raise ValueError(f"{self.name}: option modes={options['modes']} is larger than the case's "
+                             f"{case.n} machines allow")
+        if options["basis"] == "linear" and options["data"]:
+            raise ValueError(f"{self.name}: option basis='linear' is the physics-only basis: set data=False")
+
+    def _fit(self) -> FitReport:
+        options, case = self.options, self.case
+        start = time.perf_counter()
+        deadline = math.inf if options["max_seconds"] is None else start + options["max_seconds"]
+        threads = configure_threads(options["threads"])
+        delta0 = np.asarray(case.delta0, np.float64)
+        nodes = chebyshev_nodes(case.p1_min, case.p1_max, options["snapshots"])
+        t_data = np.linspace(0.0, case.t_final, round(case.t_final / options["snapshot_dt"]) + 1)
+        snapshot_s = basis_s = 0.0
+        if options["basis"] == "pod":
+            snapshots = solver_snapshots(case, nodes, t_data, options["snapshot_rtol"])[0] - delta0
+            snapshot_s = time.perf_counter() - start
+            modes = options["modes"]
+            basis = pod_basis(snapshots, modes, options["pod_tolerance"])
+            if modes is None and basis.modes > options["max_modes"]:
+                basis = Basis(basis.vectors[:, :options["max_modes"]], pod_basis(snapshots, options["max_modes"], 0.0).energy)
+        else:
+            basis = linear_basis(case, options["modes"] or min(options["max_modes"], case.n))
+        basis_s = time.perf_counter() - start - snapshot_s
+        U = basis.vectors
+        count = max(1, math.ceil(case.t_final / options["window"] - 1e-9))
+        layout = Layout((2,) + (options["width"],) * options["hidden_layers"] + (basis.modes,),
+                        case.t_final / count, case.p1_min, case.p1_max)
+        v0 = np.asarray(case.omega0, np.float64) @ U
+        targets = snapshots @ U if options["data"] else None
+        rng = np.random.default_rng(np.random.SeedSequence([options["seed"], 0xC0110C]))
+        thetas = np.zeros((0, layout.n_params))
+        theta = init_weights(layout, options["seed"])
+        iterations, losses = 0, []
+        for w in range(count):
+            data = self._window_data(layout, thetas, w, nodes, t_data, targets, v0, rng)
+            residuals, jacobian = window_functions(case, layout, U, delta0, data, options["physics_weight"])
+            now = time.perf_counter()
+            with threadpool_limits(limits=1, user_api="blas"):  # XLA has the threads (as PinnSolver._train)
+                result = levenberg_marquardt(residuals, jacobian, theta, max_iterations=options["max_iterations"],
+                                             deadline=now + (deadline - now) / (count - w))
+            theta = result.theta  # the next window starts from this one's weights
+            thetas = np.vstack([thetas, theta])
+            iterations += result.iterations
+            losses.append(result.loss)
+        self._model = ReducedModel(U, delta0, v0, layout, thetas)
+        self._queries = query_functions(layout)
+        with jax.enable_x64(True):
+            self._args = tuple(jnp.asarray(x) for x in (thetas, U, delta0, v0))
+        self._solve(np.linspace(0.0, case.t_final, 201), nodes[:1])  # compile the common shapes
+        self._solve_points(np.array([case.t_final]), nodes[:1])
+        worst = int(np.argmax(losses))
+        message = "; ".join(filter(None, (
+            threads, f"basis {options['basis']}: {basis.modes} modes (energy kept {basis.energy:.12g})",
+            f"snapshots {nodes.size} x {t_data.size} times in {snapshot_s:.3g} s, basis in {basis_s:.3g} s",
+            f"{count} windows, {iterations} LM iterations, largest loss {losses[worst]:.3g} in window {worst + 1}")))
+        return FitReport(seconds=0.0, iterations=iterations, loss=float(sum(losses)), message=message)
+
+    def _window_data(self, layout: Layout, thetas: np.ndarray, w: int, nodes: np.ndarray, t_data: np.ndarray,
+                     targets: np.ndarray | None, v0: np.ndarray, rng: np.random.Generator) -> WindowData:
+        """Window w's data points (the snapshots' times within it, at every node) and `n_f`
+        uniform collocation points, each with the start the trained windows reach at P1."""
+        t_w, length, k = w * layout.window, layout.window, v0.size
+        empty = np.zeros(0), np.zeros(0), np.zeros((0, k)), np.zeros((0, k)), np.zeros((0, k))
+        if targets is None:
+            data = empty
+        else:
+            inside = np.flatnonzero((t_data >= t_w - 1e-12) & (t_data <= t_w + length + 1e-12))
+            a_s, v_s = walk_starts(layout, thetas, nodes, v0)
+            data = (np.tile(t_data[inside] - t_w, nodes.size), np.repeat(nodes, inside.size),
+                    np.repeat(a_s, inside.size, 0), np.repeat(v_s, inside.size, 0), targets[:, inside].reshape(-1, k))
+        n_f = self.options["n_f"]
+        tau_f = rng.uniform(0.0, length, n_f)
+        p_f = rng.uniform(layout.p_lo, layout.p_hi, n_f)
+        a_f, v_f = walk_starts(layout, thetas, p_f, v0)
+        return WindowData(*data, tau_f, p_f, a_f, v_f)
+
+    def _run(self, fn: Any, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        with jax.enable_x64(True):
+            both = np.array(fn(*self._args, jnp.asarray(t), jnp.asarray(P1)))
+        return both[0], both[1]
+
+    def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._run(self._queries[0], t, P1)
+
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._run(self._queries[1], t, P1)
+
+    def _identify(self, obs: Observations) -> Estimate:
+        raise ValueError(f"{self.name} does not identify m and d: its basis and networks are trained for the "
+                         "case's own parameters")
