@@ -6,6 +6,7 @@ fitted."""
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, ClassVar
 
 import numpy as np
@@ -42,10 +43,10 @@ def bad_values(description: str) -> list[Any]:
         values.append(None)
     if description.endswith("a positive finite number"):
         values += BAD_NUMBERS
-    elif description.endswith("an integer >= 1"):
-        values += [*BAD_INTS, 0]
-    elif description.endswith("an integer >= 0"):
-        values += BAD_INTS
+    elif description.endswith("a number in (0, 1]"):
+        values += [*BAD_NUMBERS, 1.5, 2]
+    elif (low := re.search(r"an integer >= (\d+)$", description)) is not None:
+        values += [*BAD_INTS, *range(int(low[1]))]
     elif description.endswith("True or False"):
         values += BAD_BOOLS
     elif description.startswith("one of"):
