@@ -68,6 +68,25 @@ def _coefficients(i: int, c0: float, c1: float, c2: float, c3: float, values: np
 
 
 @njit(cache=True)
+def _coefficients_at(t: np.ndarray, h: float, values: np.ndarray, slopes: np.ndarray) -> np.ndarray:
+    """The modal coefficients (S, len(t), k) at the times t: the time weights first, then every
+    node's coefficients in memory order."""
+    n_s, k = values.shape[1], values.shape[2]
+    knot = np.empty(t.size, np.int64)
+    c = np.empty((t.size, 4))
+    for j in range(t.size):
+        knot[j], c[j, 0], c[j, 1], c[j, 2], c[j, 3] = _time_weights(t[j], h, values.shape[0])
+    out = np.empty((n_s, t.size, k))
+    for s in range(n_s):
+        for j in range(t.size):
+            i, c0, c1, c2, c3 = knot[j], c[j, 0], c[j, 1], c[j, 2], c[j, 3]
+            for q in range(k):
+                out[s, j, q] = (c0 * values[i, s, q] + c1 * slopes[i, s, q] + c2 * values[i + 1, s, q]
+                                + c3 * slopes[i + 1, s, q])
+    return out
+
+
+@njit(cache=True)
 def _combine(w: np.ndarray, C: np.ndarray, out: np.ndarray) -> None:
     """out (k,) = w (S,) @ C (S, k): the coefficients at one P1."""
     out[:] = 0.0
@@ -97,10 +116,7 @@ def grid(t: np.ndarray, P1: np.ndarray, h: float, nodes: np.ndarray, weights: np
     W = np.empty((n_p, n_s))
     for p in range(n_p):
         _p1_weights(P1[p], nodes, weights, W[p])
-    C = np.empty((n_s, n_t, k))
-    for j in range(n_t):
-        i, c0, c1, c2, c3 = _time_weights(t[j], h, values.shape[0])
-        _coefficients(i, c0, c1, c2, c3, values, slopes, C[:, j])
+    C = _coefficients_at(t, h, values, slopes)
     if n_s * k * n + n_p * n_s * n < n_p * (n_s * k + k * n):  # per query time
         out = np.dot(W, np.dot(C.reshape(n_s * n_t, k), basis_t).reshape(n_s, n_t * n))
     else:
