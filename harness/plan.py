@@ -150,7 +150,7 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
              identifiers: Sequence[str] = ()) -> str | None:
     """Why the run's `settings` leave `suite` of `spec` out on `case` ("skipped: ...", recorded as
     its row), or None when it runs. Identification leaves out the configs with a mark in
-    `settings.skip_identify_marks`, the multi-machine cases not in
+    `settings.skip_identify_marks`, every adapter that does not identify (`identifies`), the multi-machine cases not in
     `settings.network_identify_cases`, and there every config not declared to identify networks
     (`IDENTIFIES_NETWORKS`; `identifiers`, the configs that are, for the message). A suite of fault
     cases (`Suite.fault_cases`) leaves out every step case. On a fault case, every suite leaves
@@ -164,6 +164,8 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
                 f"{settings.name} run (--full runs it)")
     if not suite.identifies or cls is None:
         return None
+    if not cls.identifies:
+        return f"skipped: {spec.solver} does not identify (its model is fitted to the case's own m and d)"
     marks = cls.marks(spec.config)
     if marks & set(settings.skip_identify_marks):
         return f"skipped: config {spec.config} not identified in the {settings.name} run (--full runs it)"

@@ -178,6 +178,8 @@ class AbstractSolver(abc.ABC):
     - `handles_faults`: it integrates a fault case (`Case.fault`: the network switched at the
       clearing time t_c, the scenario parameter) with the switch exact; an adapter without it
       refuses a fault case (ValueError), never integrating it as a step case;
+    - `identifies`: `identify` estimates m and d (False: a surrogate fitted to the case's own
+      parameters, whose `_identify` raises; runs leave identification out for it);
     - `counts_steps`: `step_count(p1)` reports the steps (and, where its integrator counts them,
       the right-hand side evaluations) of one trajectory, integrated as `solve` integrates it;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
@@ -211,6 +213,7 @@ class AbstractSolver(abc.ABC):
     compiled: ClassVar[bool] = False
     does_work: ClassVar[bool] = True
     handles_faults: ClassVar[bool] = False
+    identifies: ClassVar[bool] = True
     counts_steps: ClassVar[bool] = False
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()

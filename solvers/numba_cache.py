@@ -30,8 +30,10 @@ PREPARED_KERNELS = (
 def _network_kernels() -> None:
     """numba-rk's kernels of `PREPARED_KERNELS` (through its own preparation: serial, batch and
     points kernels, and the sensitivities' where named), wscc9's with the sparse network (numba-rk's
-    and the trapezoid's, serial and parallel), and the PINN query evaluator of wscc9's architecture."""
+    and the trapezoid's, serial and parallel), pod-spline's query kernels, and the PINN query
+    evaluator of wscc9's architecture."""
     from solvers.numba_rk import NumbaRK
+    from solvers.pod_spline import PodSpline
     from solvers.trapezoid import Trapezoid
     from systems.cases import CASES
 
@@ -41,6 +43,7 @@ def _network_kernels() -> None:
         if sensitivities:
             solver._prepare(sensitivities=True)
     NumbaRK(CASES["wscc9"], network="sparse").fit()
+    PodSpline(CASES["wscc9"], n_snapshots=2, n_times=2).fit()  # its kernels, one for every n (5 s to compile)
     for parallel in (False, True):
         Trapezoid(CASES["wscc9"], network="sparse", parallel=parallel, threads=1).fit()
     try:

@@ -42,6 +42,7 @@ from pydantic import (
 
 __all__ = [
     "Bounds",
+    "Fraction",
     "NonNegativeInt",
     "OptionSchema",
     "PositiveFloat",
@@ -51,6 +52,7 @@ __all__ = [
     "dataclass_schema",
     "defaults",
     "describe_option",
+    "int_at_least",
     "validate_options",
 ]
 
@@ -88,10 +90,18 @@ def _ordered(pair: tuple[float, float]) -> tuple[float, float]:
 
 PositiveFloat = Annotated[float, BeforeValidator(_python_scalar), Strict(),
                           Field(gt=0, allow_inf_nan=False), Describe("a positive finite number")]
-PositiveInt = Annotated[int, BeforeValidator(_python_scalar), Strict(), Field(ge=1),
-                        Describe("an integer >= 1")]
-NonNegativeInt = Annotated[int, BeforeValidator(_python_scalar), Strict(), Field(ge=0),
-                           Describe("an integer >= 0")]
+
+
+def int_at_least(low: int) -> Any:
+    """The type of an integer option >= `low` (described as "an integer >= low")."""
+    return Annotated[int, BeforeValidator(_python_scalar), Strict(), Field(ge=low), Describe(f"an integer >= {low}")]
+
+
+PositiveInt = int_at_least(1)
+NonNegativeInt = int_at_least(0)
+# a fraction of a whole (0 < x <= 1), e.g. the energy a truncated basis keeps
+Fraction = Annotated[float, BeforeValidator(_python_scalar), Strict(), Field(gt=0, le=1, allow_inf_nan=False),
+                     Describe("a number in (0, 1]")]
 StrictBool = Annotated[bool, BeforeValidator(_python_scalar), Strict(), Describe("True or False")]
 # (low, high) with 0 < low < high, both finite (the search box of identify, p.u.)
 Bounds = Annotated[tuple[PositiveFloat, PositiveFloat], BeforeValidator(_pair), Strict(),

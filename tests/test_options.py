@@ -6,6 +6,7 @@ fitted."""
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, ClassVar
 
 import numpy as np
@@ -15,7 +16,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from solvers import INTERFACE, SOLVERS, make_solver
-from solvers.base import AbstractSolver
+from solvers.base import DEFAULT_CONFIG, AbstractSolver
 from solvers.classical import ToleranceOptions
 from solvers.options import OptionSchema, PositiveFloat, describe_option, validate_options
 from solvers.pinn.config import PinnConfig
@@ -42,10 +43,10 @@ def bad_values(description: str) -> list[Any]:
         values.append(None)
     if description.endswith("a positive finite number"):
         values += BAD_NUMBERS
-    elif description.endswith("an integer >= 1"):
-        values += [*BAD_INTS, 0]
-    elif description.endswith("an integer >= 0"):
-        values += BAD_INTS
+    elif description.endswith("a number in (0, 1]"):
+        values += [*BAD_NUMBERS, 1.5, 2]
+    elif (low := re.search(r"an integer >= (\d+)$", description)) is not None:
+        values += [*BAD_INTS, *range(int(low[1]))]
     elif description.endswith("True or False"):
         values += BAD_BOOLS
     elif description.startswith("one of"):
@@ -75,7 +76,7 @@ def test_defaults_configs_and_variants_validate_to_plain_values(name):
     cls = ADAPTERS[name]
     assert set(cls.OPTIONS) == set(cls.SCHEMA.model_fields)
     for config in cls.CONFIGS:
-        case = CASE
+        case = CASE if cls.made_for(config, CASE.kind) else CASES["wscc9"]  # made for networks alone
         if cls.CASE_SCENARIOS.get(config) == frozenset({FAULT_SCENARIO}):  # made for fault cases alone
             case = CASES["wscc9-bus8-line8-9"]
         solver = cls(case, config)
@@ -85,7 +86,8 @@ def test_defaults_configs_and_variants_validate_to_plain_values(name):
                 assert solver.options[key] is None or type(solver.options[key]) is tuple
         for variant in cls.VARIANTS:
             cls(case, config, **variant)
-    assert cls(CASE, **cls.OPTIONS).options == cls(CASE).options
+    case = CASE if cls.made_for(DEFAULT_CONFIG, CASE.kind) else CASES["wscc9"]
+    assert cls(case, **cls.OPTIONS).options == cls(case).options
 
 
 @pytest.mark.parametrize("name", ADAPTERS)

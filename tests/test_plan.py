@@ -42,7 +42,9 @@ from systems.faults import FAULT_CASES
 # their units added, and a cct entry (skipped: fault cases only) of each step case's unit, every
 # other entry as it was (checked when recorded); and when make bench left the sweep points (`tight`) out
 # on the fault cases (`Settings.fault_omit_marks`): those entries skipped, their fits gone, every other
-# entry as it was (checked when recorded).
+# entry as it was (checked when recorded); and when pod-spline and reduced-pinn joined the registry,
+# with the `identifies` capability: their units added, every other entry as it was (checked when
+# recorded).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {

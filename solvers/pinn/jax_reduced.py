@@ -55,7 +55,7 @@ class ReducedOptions(OptionSchema):
     basis: Literal["pod", "linear"] = "pod"
     modes: PositiveInt | None = None
     pod_tolerance: PositiveFloat = 1e-10
-    max_modes: PositiveInt = 60
+    max_modes: PositiveInt = 40
     snapshots: PositiveInt = 9
     snapshot_dt: PositiveFloat = 0.05
     snapshot_rtol: PositiveFloat = 1e-9
@@ -112,6 +112,7 @@ class ReducedPinn(AbstractSolver):
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {c: frozenset({LARGE_SYSTEMS}) for c in CONFIGS}
     bounded_domain: ClassVar[bool] = True
     trains: ClassVar[bool] = True
+    identifies: ClassVar[bool] = False
     takes_threads: ClassVar[bool] = True
     compiled: ClassVar[bool] = True
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads"})
