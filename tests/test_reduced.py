@@ -44,12 +44,19 @@ def test_pod_basis_keeps_what_the_rule_asks_and_refuses_more_modes_than_the_snap
         pod_basis(snapshots, 7, 1e-12)
 
 
-def test_linear_basis_is_orthonormal_and_holds_the_static_response(wscc9):
+def test_linear_basis_is_orthonormal_and_holds_the_response(wscc9):
+    """The static response and the slowest swing modes hold most of a step's trajectories: on ieee39
+    (10 machines) 5 of them leave 2.7e-2 of the deviations from delta0 (measured)."""
     from solvers.pinn.jax_reduced import linear_basis
 
-    basis = linear_basis(wscc9, 2)
-    np.testing.assert_allclose(basis.vectors.T @ basis.vectors, np.eye(2), atol=1e-12)
+    case = CASES["ieee39"]
+    basis = linear_basis(case, 5)
+    np.testing.assert_allclose(basis.vectors.T @ basis.vectors, np.eye(5), atol=1e-12)
     assert np.isnan(basis.energy)
+    ref, _ = reference(case, np.linspace(0.0, case.t_final, 51), np.linspace(case.p1_min, case.p1_max, 3))
+    deviation = ref - np.asarray(case.delta0)
+    left = deviation - deviation @ basis.vectors @ basis.vectors.T
+    assert np.linalg.norm(left) / np.linalg.norm(deviation) < 5e-2
 
 
 @pytest.mark.parametrize(("case_name", "options", "message"), [

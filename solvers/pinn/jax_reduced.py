@@ -81,7 +81,7 @@ def linear_basis(case: Case, modes: int) -> Basis:
     X = k.C * np.sin(diff) - k.S * np.cos(diff)  # dP_e,i / d delta_j, i != j
     np.fill_diagonal(X, 0.0)
     K = X - np.diag(X.sum(1) + k.c_inf * np.sin(delta0) - k.s_inf * np.cos(delta0))
-    K = -0.5 * (K + K.T)  # the restoring (positive semi-definite) part
+    K = 0.5 * (K + K.T)  # the symmetric part: positive semi-definite at a stable equilibrium
     m = np.asarray(case.m, np.float64)
     root = 1.0 / np.sqrt(m)
     _, vectors = np.linalg.eigh(root[:, None] * K * root[None, :])
