@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from solvers.snapshots import chebyshev_nodes
+
 __all__ = ["grid", "lobatto_nodes", "points"]
 
 
@@ -22,9 +24,8 @@ def lobatto_nodes(low: float, high: float, count: int) -> tuple[np.ndarray, np.n
     """`count` >= 2 Chebyshev-Lobatto nodes (the extrema of T_{count-1}, both ends included) on
     [low, high], ascending, and their barycentric weights (-1)^j, halved at the ends (Berrut and
     Trefethen 2004, the second form: any common factor cancels)."""
+    nodes = chebyshev_nodes(low, high, count)
     j = np.arange(count)
-    nodes = low + (high - low) * 0.5 * (1.0 - np.cos(np.pi * j / (count - 1)))
-    nodes[0], nodes[-1] = low, high  # exact ends: a query at p1_min or p1_max is a node
     weights = np.where(j % 2 == 0, 1.0, -1.0)
     weights[0] *= 0.5
     weights[-1] *= 0.5

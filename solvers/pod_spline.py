@@ -7,12 +7,12 @@ from collections.abc import Sequence
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-import scipy.linalg
 
 from solvers import pod_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport
 from solvers.numba_rk import NumbaRK
 from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, int_at_least
+from solvers.snapshots import pod_modes
 from systems.cases import STEP_SCENARIO, Observations, Scenario
 from systems.model import accelerations, coupling
 
@@ -42,22 +42,6 @@ class Interpolant(NamedTuple):
     slopes: np.ndarray
     basis_t: np.ndarray
     mean: np.ndarray
-
-
-def pod_modes(rows: np.ndarray, k: int | None, energy: float) -> tuple[np.ndarray, float]:
-    """The leading right singular vectors (n, k) of `rows` (N, n), the POD modes of its rows, and
-    the fraction of the squared singular values they leave out. `k` None: the fewest modes that
-    keep `energy` of them. Each mode's largest entry is positive (SVD leaves the sign free). The
-    singular values are those of R from a QR of `rows` (n x n), not of the N x n matrix itself."""
-    R = scipy.linalg.qr(rows, mode="r", check_finite=False)[0][:min(rows.shape)]
-    s, vt = np.linalg.svd(R, full_matrices=False)[1:]
-    squared = s * s
-    tail = np.append(np.cumsum(squared[::-1])[::-1], 0.0) / max(squared.sum(), np.finfo(float).tiny)
-    if k is None:  # tail[j]: the fraction modes j, j + 1, ... hold
-        k = max(1, int(np.argmax(tail <= 1.0 - energy)))
-    modes = vt[:k].T
-    largest = modes[np.abs(modes).argmax(axis=0), np.arange(k)]
-    return modes * np.where(largest < 0, -1.0, 1.0), float(tail[k])
 
 
 def interpolant(x: np.ndarray, rate: np.ndarray, k: int | None, energy: float) -> tuple[Interpolant, int, float]:

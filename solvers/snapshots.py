@@ -1,5 +1,5 @@
 """Solver snapshots of a step case and their proper orthogonal decomposition (POD): the training data
-and the basis of the reduced-order surrogates (`solvers.pinn.jax_reduced`).
+and the bases of the reduced-order surrogates (`solvers.pod_spline`, `solvers.pinn.jax_reduced`).
 
 Units: t in s, P1 in p.u., delta in rad, omega in rad/s. Shapes: n machines on the last axis.
 """
@@ -9,27 +9,30 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+import scipy.linalg
 
+from solvers.numba_rk import NumbaRK
 from systems.cases import Case
 
-__all__ = ["Basis", "chebyshev_nodes", "pod_basis", "solver_snapshots"]
+__all__ = ["Basis", "chebyshev_nodes", "pod_basis", "pod_modes", "solver_snapshots"]
 
 
 def chebyshev_nodes(lo: float, hi: float, count: int) -> np.ndarray:
-    """`count` >= 2 Chebyshev-Lobatto nodes on [lo, hi], ascending, both ends included: the
-    points where an interpolant in P1 (and a POD basis built from them) errs least at the ends."""
+    """`count` >= 2 Chebyshev-Lobatto nodes (the extrema of T_{count-1}) on [lo, hi], ascending,
+    both ends included exactly (a query at lo or hi is a node): the points where an interpolant in
+    P1 (and a POD basis built from them) errs least at the ends."""
     if count < 2:
         raise ValueError(f"chebyshev_nodes: count must be at least 2 (both ends of the range), got {count}")
-    return 0.5 * (lo + hi) - 0.5 * (hi - lo) * np.cos(np.pi * np.arange(count) / (count - 1))
+    nodes = lo + (hi - lo) * 0.5 * (1.0 - np.cos(np.pi * np.arange(count) / (count - 1)))
+    nodes[0], nodes[-1] = lo, hi
+    return nodes
 
 
 def solver_snapshots(case: Case, P1: np.ndarray, t: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray]:
     """delta (rad) and omega (rad/s), (len(P1), len(t), n): numba-rk's DOP853 at `rtol`
     (atol = rtol / 100) with its network form chosen as for the scaling suite (`network="auto"`:
     sparse from 100 machines), compiled on first use."""
-    from solvers import make_solver  # the registry imports adapters on first use
-
-    solver = make_solver("numba-rk", case=case, rtol=rtol, atol=rtol * 1e-2)
+    solver = NumbaRK(case, rtol=rtol, atol=rtol * 1e-2)
     solver.fit()
     trajectory = solver.solve(t, P1)
     return trajectory.delta, trajectory.omega
@@ -48,18 +51,31 @@ class Basis(NamedTuple):
         return self.vectors.shape[1]
 
 
+def pod_modes(rows: np.ndarray, k: int | None, energy: float) -> tuple[np.ndarray, float]:
+    """The leading right singular vectors (n, k) of `rows` (N, n), the POD modes of its rows, and
+    the fraction of the squared singular values they leave out. `k` None: the fewest modes that
+    keep `energy` of them. Each mode's largest entry is positive (SVD leaves the sign free). The
+    singular values are those of R from a QR of `rows` (n x n), not of the N x n matrix itself."""
+    R = scipy.linalg.qr(rows, mode="r", check_finite=False)[0][:min(rows.shape)]
+    s, vt = np.linalg.svd(R, full_matrices=False)[1:]
+    squared = s * s
+    tail = np.append(np.cumsum(squared[::-1])[::-1], 0.0) / max(squared.sum(), np.finfo(float).tiny)
+    if k is None:  # tail[j]: the fraction modes j, j + 1, ... hold
+        k = max(1, int(np.argmax(tail <= 1.0 - energy)))
+    modes = vt[:k].T
+    largest = modes[np.abs(modes).argmax(axis=0), np.arange(k)]
+    return modes * np.where(largest < 0, -1.0, 1.0), float(tail[k])
+
+
 def pod_basis(deviations: np.ndarray, modes: int | None, tolerance: float) -> Basis:
-    """The POD basis of `deviations` (..., n): the leading left singular vectors of the
-    (n, snapshots) matrix of its rows, uncentred (so that a zero deviation, the initial state, is
-    represented exactly). `modes` of them, or where None the fewest that keep all but `tolerance`
-    of the squared norm. A ValueError names `modes` when the snapshots span fewer directions."""
+    """The POD basis (`pod_modes`) of `deviations` (..., n), uncentred (so that a zero deviation,
+    the initial state, is represented exactly): `modes` of them, or where None the fewest that keep
+    all but `tolerance` of the squared norm. A ValueError names `modes` when the snapshots span
+    fewer directions."""
     n = deviations.shape[-1]
-    snapshots = deviations.reshape(-1, n).T
-    if modes is not None and modes > min(snapshots.shape):
-        raise ValueError(f"option modes={modes} is larger than the snapshots allow: {snapshots.shape[1]} snapshots "
-                         f"of {n} machines span at most {min(snapshots.shape)} directions")
-    U, s, _ = np.linalg.svd(snapshots, full_matrices=False)
-    tail = 1.0 - np.cumsum(s ** 2) / np.sum(s ** 2)  # tail[j]: the fraction lost keeping j + 1 modes
-    k = modes if modes is not None else int(np.searchsorted(-tail, -tolerance) + 1)
-    k = min(k, s.size)
-    return Basis(np.ascontiguousarray(U[:, :k]), float(1.0 - tail[k - 1]) if k < s.size else 1.0)
+    rows = deviations.reshape(-1, n)
+    if modes is not None and modes > min(rows.shape):
+        raise ValueError(f"option modes={modes} is larger than the snapshots allow: {rows.shape[0]} snapshots "
+                         f"of {n} machines span at most {min(rows.shape)} directions")
+    vectors, left_out = pod_modes(rows, modes, 1.0 - tolerance)
+    return Basis(np.ascontiguousarray(vectors), 1.0 - left_out)
