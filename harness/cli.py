@@ -12,9 +12,9 @@ import json
 import sys
 from pathlib import Path
 
-from harness import compare, sweep  # import only the standard library until they run
+from harness import compare, listing, sweep  # import only the standard library until they run
 from harness.cli_options import add_shared_options, progress_setting
-from harness.usage import UsageError
+from harness.usage import UsageError, check_known
 
 
 def _suite_names() -> list[str]:
@@ -130,15 +130,8 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
     sweep.add_parser(sub)
     compare.add_parser(sub)
+    listing.add_parser(sub)
     return parser
-
-
-def _known(option: str, given: list[str] | None, known: list[str]) -> None:
-    """Every name in `given` must be known: one unknown name anywhere in the list is an error."""
-    unknown = [name for name in given or [] if name not in known]
-    if unknown:
-        raise UsageError(f"swingbench run: unknown {option} {', '.join(map(repr, unknown))}; "
-                         f"known: {', '.join(known)}")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -163,11 +156,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     from solvers import SOLVERS, solver_class
     from systems.cases import CASES
 
-    _known("suite(s)", args.suite, list(SUITES))
-    _known("case(s)", args.case, list(CASES))
-    _known("solver(s)", args.solver, list(SOLVERS))
+    check_known("run", "suite(s)", args.suite, SUITES)
+    check_known("run", "case(s)", args.case, CASES)
+    check_known("run", "solver(s)", args.solver, SOLVERS)
     configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
-    _known("config(s)", args.config, configs)
+    check_known("run", "config(s)", args.config, configs)
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
@@ -315,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv  # for metadata and the command that resumes
     try:
         return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep,
-                "compare": compare.cmd_compare}[args.command](args)
+                "compare": compare.cmd_compare, "list": listing.cmd_list}[args.command](args)
     except UsageError as exc:  # one line, no traceback; the interpreter exits with its code and prints nothing
         print(exc, file=sys.stderr)
         raise
