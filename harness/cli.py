@@ -1,4 +1,5 @@
-"""Command line: `swingbench run` measures, `swingbench report DIR` re-renders tables from CSV rows.
+"""Command line: `swingbench run` measures, `report` re-renders a results folder, `sweep`, `compare` and
+`list` (`harness.sweep`, `harness.compare`, `harness.listing`) do what their modules say.
 
 Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
 some failed (one line names them and where their rows are) or were lost (`harness.runner.outcome`);
@@ -39,14 +40,16 @@ def _version() -> str:
 
 
 DESCRIPTION = """\
-swingbench: physics-informed neural networks against classical ODE solvers on the
-single-machine infinite-bus swing equation (Misyris et al., PESGM 2020).
+swingbench: physics-informed neural networks (PINNs, in PyTorch and JAX) against classical ODE
+solvers (scipy, CasADi CVODES, numba, diffrax, the implicit trapezoidal rule) on power-system swing
+dynamics: the single-machine infinite-bus case of Misyris et al. (PESGM 2020), multi-machine grids
+from 3 to 1445 machines (wscc9, kundur4, ieee39, MATPOWER's case118 ... case9241pegase) and three-phase fault cases
+with their critical clearing time.
 
 Every measurement is taken on this machine, in one run, warm, with pinned threads, against a tight
 DOP853 reference (rtol = atol = 1e-12); preparation (build, JIT, training) is reported apart from
 query time. Every speed verdict compares a PINN with the fastest classical option at least as
-accurate, on three rungs: the literature's baseline (scipy RK45 looped), the best Python-driven and
-the best compiled (numba, diffrax, trapezoid) classical solver."""
+accurate, timed paired and interleaved, over several seeds."""
 
 
 DOCS_HELP = ("write the documentation site's results pages into this folder: one page per case with its "
@@ -60,10 +63,10 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"swingbench {_version()}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, title="commands", metavar="COMMAND")
 
     run = sub.add_parser(
-        "run", help="run suites and write tables to --out",
+        "run", help="measure: the suites for solvers x configs x seeds on cases, into --out",
         description="Run suites for solvers x configs x seeds; append each row to OUT/rows.jsonl as it is "
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
@@ -120,7 +123,7 @@ def _parser() -> argparse.ArgumentParser:
                        "ADDRESS --nthreads 1)",
         dask_local_help="run the units on a local dask.distributed cluster of one worker process")
 
-    report = sub.add_parser("report", help="re-render tables from a results folder without running",
+    report = sub.add_parser("report", help="re-render a results folder's tables, figures and pages from its rows",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
                                         "with --update-readme and --docs, the README's verdicts and the results pages.")
     report.add_argument("directory", type=Path)

@@ -24,7 +24,7 @@ SECTIONS = ("cases", "solvers", "configs", "options", "suites")
 
 def add_parser(sub) -> None:
     listing = sub.add_parser(
-        "list", help="list the cases, solvers, configs, options and suites a run can name",
+        "list", help="what a run can name: cases, solvers, configs, options, suites",
         description="Print what `swingbench run` can name, from the registries: cases (kind, machines, scenario "
                     "parameter and its range), solvers (capabilities, or why one is skipped), configs (marks and "
                     "option overrides), options (type and range from the adapter's schema, default) and suites "
