@@ -102,6 +102,10 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--noise-draws", type=int, default=None, metavar="K",
                      help="identify from K draws of the noise at each noise level above 0 (default 1): the "
                           "identification table then counts how often each 95 %% interval holds the truth")
+    run.add_argument("--verdict-pinn", action="append", default=[], metavar="NAME[:CONFIG]",
+                     help="a trained adapter (a plugin's too) whose config (default: every named config) the verdict "
+                          "suite, and the cct suite's per-seed search, measure, in place of the JAX PINN's default, "
+                          "marching and fault-marching (repeatable); it must be among the selected solvers and configs")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
                      help="also replace the generated verdicts section of this README (and write the results "
@@ -153,7 +157,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.report import write_report
     from harness.results_folder import interrupted_message, open_results
     from harness.runner import check_units, execute, outcome
-    from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
+    from harness.runs import (
+        DEFAULT,
+        FULL,
+        QUICK,
+        default_specs,
+        parse_option,
+        parse_verdict_pinns,
+        with_options,
+    )
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
@@ -167,6 +179,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
+    if args.verdict_pinn:
+        try:
+            settings = replace(settings, verdict_pinns=parse_verdict_pinns(args.verdict_pinn))
+        except ValueError as exc:
+            raise UsageError(f"swingbench run: --verdict-pinn {exc}") from None
     if args.config:  # a config named runs on the fault cases too
         settings = replace(settings, fault_omit_marks=())
     if args.noise_draws is not None:
@@ -191,6 +208,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise UsageError("swingbench run: no solver/config combination selected")
+    if args.verdict_pinn and {"verdict", "cct"} & set(suites):
+        _check_verdict_pinns(specs, settings)
     if args.option:
         try:
             specs = with_options(specs, dict(parse_option(text) for text in args.option))
@@ -225,6 +244,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     _write_docs(args, rows, meta, args.out)
     print(f"[swingbench] wrote {args.out}/", file=sys.stderr)
     return outcome(rows, store.path, counts["lost"])
+
+
+def _check_verdict_pinns(specs: list, settings) -> None:
+    """UsageError unless every adapter of `settings.verdict_pinns` runs in one of its configs among `specs`."""
+    for name, configs, _ in settings.verdict_pinns:
+        if not any(spec.solver == name and spec.config in configs for spec in specs):
+            raise UsageError(f"swingbench run: --verdict-pinn {name} ({', '.join(configs)}) is not among the selected "
+                             "solvers and configs (--solver, --config; a run leaves out the configs marked ablation or "
+                             "large systems unless --config names them)")
 
 
 def _read_rows(store) -> list[dict]:
