@@ -1,29 +1,41 @@
-"""`swingbench run --verdict-pinn NAME[:CONFIG]`: any trained adapter, one registered from outside
-included, gets verdicts by the verdict suite's rules; bad names are one line and exit 2."""
+"""`swingbench run --verdict-pinn NAME[:CONFIG]`: any trained adapter, a plugin's (an installed
+distribution's entry point, as in tests/test_plugins.py) included, gets verdicts by the verdict
+suite's rules; bad names are one line and exit 2."""
 
 from __future__ import annotations
 
+import importlib
+import json
+import sys
 from dataclasses import replace
-from typing import ClassVar
+from pathlib import Path
 
 import pytest
 
-import harness.runs
 import solvers
 from harness.cli import main
 from harness.plan import plan
 from harness.runs import QUICK, default_specs, parse_verdict_pinns
 from harness.store import RowStore
-from harness.suites import SUITES, _matching
+from harness.suites import SUITES
 from harness.usage import EXIT_USAGE
-from solvers.base import AbstractSolver, FitReport
-from solvers.classical import ToleranceOptions
-from solvers.options import NonNegativeInt, OptionSchema
 from systems.cases import SMIB_INFERENCE
-from systems.reference import reference
+from tests.test_plugins import install, python
 
 SETTINGS = replace(QUICK, cache_dir=None, verdict_seeds=(0, 1), verdict_rounds=1, verdict_pairs=3,
                    throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=0)
+
+
+# The plugin `tinyverdict`: "tiny-pinn" trains in no time and answers the reference scaled by
+# 1 + 1e-4 (seed + 1), a relative error of that size; "tiny-rival", a compiled classical adapter,
+# the reference scaled by 1 + rtol.
+PLUGIN = '''
+from typing import ClassVar
+
+from solvers.base import AbstractSolver, FitReport
+from solvers.classical import ToleranceOptions
+from solvers.options import NonNegativeInt, OptionSchema
+from systems.reference import reference
 
 
 class SeedOptions(OptionSchema):
@@ -31,8 +43,6 @@ class SeedOptions(OptionSchema):
 
 
 class TinyPinn(AbstractSolver):
-    """Trains in no time: the reference scaled by 1 + 1e-4 (seed + 1), a relative error of that size."""
-
     name: ClassVar[str] = "tiny-pinn"
     SCHEMA = SeedOptions
     CONFIGS: ClassVar[dict] = {"default": {}, "other": {}}
@@ -51,8 +61,6 @@ class TinyPinn(AbstractSolver):
 
 
 class TinyRival(AbstractSolver):
-    """A compiled classical rival whose relative error is its rtol: the reference scaled by 1 + rtol."""
-
     name: ClassVar[str] = "tiny-rival"
     SCHEMA = ToleranceOptions
     compiled = has_tolerance = True
@@ -66,29 +74,53 @@ class TinyRival(AbstractSolver):
 
     def _identify(self, obs):
         return self.case.m, self.case.d, 0, False, "tiny-rival does not identify"
+'''
+# A run in a process of its own with the plugin installed, tiny-rival the only compiled rival and
+# the quick settings small enough for a test.
+RUN = """
+import sys
+from dataclasses import replace
+
+import harness.runs
+from harness.cli import main
+from harness.suites import _matching
+
+harness.runs.QUICK = replace(harness.runs.QUICK, cache_dir=None, verdict_seeds=(0, 1), verdict_rounds=1,
+                             verdict_pairs=3, throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=0)
+_matching._families = lambda case, settings: [("tiny-rival", "default", ())]
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def plugin_site(folder: Path) -> Path:
+    """`folder` holding the plugin `tinyverdict`, installed (its dist-info, its entry points)."""
+    install(folder, "tinyverdict", {"tiny-pinn": "tinyverdict:TinyPinn", "tiny-rival": "tinyverdict:TinyRival"},
+            {"tinyverdict/__init__.py": PLUGIN})
+    return folder
 
 
 @pytest.fixture
-def tiny(monkeypatch):
-    """tiny-pinn in the registry as an adapter from outside would be, tiny-rival the only compiled
-    rival, and the quick settings small enough for a test."""
-    monkeypatch.setitem(solvers.SOLVERS, TinyPinn.name, TinyPinn)
-    monkeypatch.setitem(solvers.SOLVERS, TinyRival.name, TinyRival)
-    monkeypatch.setattr(_matching, "_families", lambda case, settings: [(TinyRival.name, "default", ())])
-    monkeypatch.setattr(harness.runs, "QUICK", SETTINGS)
+def tiny(monkeypatch, tmp_path):
+    """The plugin's adapters in this process's registry, as its entry points would put them."""
+    monkeypatch.syspath_prepend(str(plugin_site(tmp_path / "site")))
+    module = importlib.import_module("tinyverdict")
+    monkeypatch.setitem(sys.modules, "tinyverdict", module)  # forgotten again after the test
+    monkeypatch.setitem(solvers.SOLVERS, "tiny-pinn", module.TinyPinn)
+    monkeypatch.setitem(solvers.SOLVERS, "tiny-rival", module.TinyRival)
 
 
-def test_a_trained_adapter_named_gets_verdict_rows_for_every_seed_against_a_matched_rival(tiny, tmp_path):
-    out = tmp_path / "out"
-    assert main(["run", "--quick", "--suite", "verdict", "--solver", "tiny-pinn", "--case", "smib-inference",
-                 "--verdict-pinn", "tiny-pinn:default", "--progress", "off", "--out", str(out)]) == 0
-    rows = [r for r in RowStore(out, create=False).read().rows if r.get("suite") == "verdict"]
-    measured = [r for r in rows if r["status"] == "ok"]
-    assert {r["config"] for r in measured} == {"default"} and {r["pinn_seed"] for r in measured} == {0, 1}
-    assert {r["query"] for r in measured} == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s"}
-    for r in measured:
-        assert r["rival"].startswith("tiny-rival [default") and r["samples"] == 3
+def test_a_plugin_that_trains_gets_verdict_rows_for_every_seed_against_a_matched_rival(tmp_path):
+    site = plugin_site(tmp_path / "site")
+    run = python(["-c", RUN, "run", "--quick", "--suite", "verdict", "--solver", "tiny-pinn", "--case", "smib-inference",
+                  "--verdict-pinn", "tiny-pinn:default", "--progress", "off", "--out", "out"], [site], tmp_path)
+    assert run.returncode == 0, run.stderr[-3000:]
+    rows = [r for r in RowStore(tmp_path / "out", create=False).read().rows if r.get("suite") == "verdict"]
+    assert {r["config"] for r in rows} == {"default"} and {r["pinn_seed"] for r in rows} == {0, 1}
+    assert {r["query"] for r in rows} == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s"}
+    for r in rows:
+        assert r["status"] == "ok" and r["rival"].startswith("tiny-rival [default") and r["samples"] == 3
         assert r["rival_rel_l2_delta"] <= r["pinn_rel_l2_delta"] and r["ratio_low"] <= r["ratio"] <= r["ratio_high"]
+    assert json.loads((tmp_path / "out" / "metadata.json").read_text())["version_tinyverdict"] == "0.1"
 
 
 def test_without_the_flag_the_verdict_suite_measures_the_jax_pinn_alone_with_it_the_configs_named(tiny):
