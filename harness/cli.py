@@ -15,6 +15,7 @@ from pathlib import Path
 
 from harness import compare, listing, sweep  # import only the standard library until they run
 from harness.cli_options import add_shared_options, progress_setting
+from harness.readme import README_END, README_START, around, replace_section
 from harness.usage import UsageError, check_known
 
 
@@ -221,7 +222,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(f"swingbench run: {exc}") from None
     if args.update_readme:
-        _readme_around(args.update_readme)
+        around(args.update_readme, README_START, README_END, "run")
     store, contents = open_results(args.out, args.resume, "run", overwrite=args.overwrite,
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
@@ -264,31 +265,6 @@ def _read_rows(store) -> list[dict]:
     return contents.rows
 
 
-README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
-
-
-def _readme_around(path: Path, command: str = "run") -> tuple[str, str]:
-    """The README's text before and after its table markers; UsageError, one line, when it cannot
-    be read or has no such section (checked before a run measures, and again when it writes)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"swingbench {command}: --update-readme: cannot read {path}: {exc}") from None
-    if README_START not in text or README_END not in text:
-        raise UsageError(f"swingbench {command}: --update-readme: {path} has no {README_START} ... {README_END} "
-                         "section to update")
-    head, rest = text.split(README_START, 1)
-    return head, rest.split(README_END, 1)[1]
-
-
-def update_readme(path: Path, block: str) -> None:
-    """Replace the text between the README's markers with `block` (`harness.pages.readme_block`)."""
-    from harness.store import atomic_write
-
-    head, tail = _readme_around(path)
-    atomic_write(path, head + README_START + block + README_END + tail)
-
-
 def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: Path) -> None:
     """The results pages (`--docs`, or docs/results beside a README to update) and the README's
     verdicts, after the report wrote its tables and figures into `results`."""
@@ -299,7 +275,8 @@ def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results:
 
     write_pages(rows, meta, pages, results)
     if args.update_readme:
-        update_readme(args.update_readme, readme_block(rows, meta, args.update_readme, pages, results))
+        replace_section(args.update_readme, README_START, README_END,
+                        readme_block(rows, meta, args.update_readme, pages, results), args.command)
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -324,7 +301,7 @@ def cmd_report(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             meta = {}
     if args.update_readme:
-        _readme_around(args.update_readme, "report")
+        around(args.update_readme, README_START, README_END, "report")
     try:
         print(write_report(rows, args.directory, meta))
         _write_docs(args, rows, meta, args.directory)

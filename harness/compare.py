@@ -155,7 +155,7 @@ def _spread(both) -> str:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from harness.store import atomic_write
+    from harness.readme import replace_section
     from harness.verdict_table import FLIP, compare_runs
 
     start = args.update_readme.resolve().parent if args.update_readme else Path()
@@ -163,14 +163,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
     block = _block(frames_a, frames_b, _sources(args.run_a, args.run_b, start))
     print(block)
     if args.update_readme:
-        try:
-            text = args.update_readme.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise UsageError(f"swingbench compare: --update-readme: cannot read {args.update_readme}: {exc}") from None
-        if COMPARE_START not in text or COMPARE_END not in text:
-            raise UsageError(f"swingbench compare: --update-readme: {args.update_readme} has no {COMPARE_START} ... "
-                             f"{COMPARE_END} section to update")
-        head, rest = text.split(COMPARE_START, 1)
-        atomic_write(args.update_readme, head + COMPARE_START + block + COMPARE_END + rest.split(COMPARE_END, 1)[1])
+        replace_section(args.update_readme, COMPARE_START, COMPARE_END, block, "compare")
     both = compare_runs(frames_a, frames_b) if "verdict" in frames_a and "verdict" in frames_b else None
     return 1 if both is not None and not both.empty and (both["agreement"] == FLIP).any() else 0

@@ -67,3 +67,17 @@ def test_runs_that_share_neither_queries_nor_verdicts_are_one_line_and_exit_2(tm
         main(["compare", str(a), str(b)])
     err = capsys.readouterr().err
     assert info.value.code == EXIT_USAGE and err.count("\n") == 1 and "share no latency or accuracy query" in err
+
+
+def test_update_readme_replaces_the_comparison_section_alone_and_refuses_a_readme_without_one(runs, tmp_path, capsys):
+    from harness.compare import COMPARE_END, COMPARE_START
+
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{COMPARE_START}\nold\n{COMPARE_END}\nend\n")
+    assert main(["compare", str(runs[0]), str(runs[1]), "--update-readme", str(readme)]) == 0
+    block = capsys.readouterr().out[:-1]  # print's newline
+    assert readme.read_text() == f"intro\n{COMPARE_START}{block}{COMPARE_END}\nend\n"
+    readme.write_text("no section\n")
+    with pytest.raises(SystemExit) as info:
+        main(["compare", str(runs[0]), str(runs[1]), "--update-readme", str(readme)])
+    assert info.value.code == EXIT_USAGE and "has no <!-- swingbench:compare:start -->" in capsys.readouterr().err
