@@ -44,8 +44,8 @@ DESCRIPTION = """\
 swingbench: physics-informed neural networks (PINNs, in PyTorch and JAX) against classical ODE
 solvers (scipy, CasADi CVODES, numba, diffrax, the implicit trapezoidal rule) on power-system swing
 dynamics: the single-machine infinite-bus case of Misyris et al. (PESGM 2020), multi-machine grids
-from 3 to 1445 machines (wscc9, kundur4, ieee39, MATPOWER's case118 ... case9241pegase) and three-phase fault cases
-with their critical clearing time.
+from 3 to 1445 machines (wscc9, kundur4, ieee39, MATPOWER's case118 ... case9241pegase) and
+three-phase fault cases with their critical clearing time.
 
 Every measurement is taken on this machine, in one run, warm, with pinned threads, against a tight
 DOP853 reference (rtol = atol = 1e-12); preparation (build, JIT, training) is reported apart from
@@ -104,9 +104,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="identify from K draws of the noise at each noise level above 0 (default 1): the "
                           "identification table then counts how often each 95 %% interval holds the truth")
     run.add_argument("--verdict-pinn", action="append", default=[], metavar="NAME[:CONFIG]",
-                     help="a trained adapter (a plugin's too) whose config (default: every named config) the verdict "
-                          "suite, and the cct suite's per-seed search, measure, in place of the JAX PINN's default, "
-                          "marching and fault-marching (repeatable); it must be among the selected solvers and configs")
+                     help="measure this trained adapter (a plugin's too), in CONFIG or every named config of its own, "
+                          "in the verdict suite and the cct suite's search over the verdict seeds, in place of the JAX "
+                          "PINN's default, marching and fault-marching (repeatable); it must be among the selected "
+                          "solvers and configs")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
                      help="also replace the generated verdicts section of this README (and write the results "

@@ -53,8 +53,8 @@ def _sources(run_a: Path, run_b: Path, start: Path) -> str:
     return f"{a} (run A) and {b} (run B)"
 
 
-# suite -> (the columns that name a query besides case and spec, the measure, its unit)
-MEASURES = {"latency": (("query",), "median_s", "s"), "accuracy": (("quantity", "against"), "rel_l2", "")}
+# suite -> (the columns that name a query besides case and spec, joined by " against ", and its measure)
+MEASURES = {"latency": (("query",), "median_s"), "accuracy": (("quantity", "against"), "rel_l2")}
 
 
 def _medians(frames: dict, suite: str):
@@ -65,7 +65,7 @@ def _medians(frames: dict, suite: str):
 
     from harness.analysis import label
 
-    names, measure, _ = MEASURES[suite]
+    names, measure = MEASURES[suite]
     df = frames.get(suite)
     if df is None or measure not in df or not set(names) <= set(df.columns):
         return pd.DataFrame(columns=["suite", "case", "configuration", "query", "measure", "median"])
