@@ -34,8 +34,8 @@ def add_parser(sub) -> None:
     listing.add_argument("--solver", nargs="+", default=None, metavar="NAME",
                          help="only these adapters in the solvers, configs and options sections")
     listing.add_argument("--case", nargs="+", default=None, metavar="NAME",
-                         help="only these cases in the cases section (listing a case builds it: every case "
-                              "takes about half a minute, the largest grids most of it)")
+                         help="only these cases in the cases section (listing a case builds it: all of them "
+                              "take about half a minute, the largest grids most of it)")
 
 
 def _capabilities(cls: type) -> list[str]:
