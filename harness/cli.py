@@ -1,4 +1,5 @@
-"""Command line: `swingbench run` measures, `swingbench report DIR` re-renders tables from CSV rows.
+"""Command line: `swingbench run` measures, `report` re-renders a results folder, `sweep`, `compare` and
+`list` (`harness.sweep`, `harness.compare`, `harness.listing`) do what their modules say.
 
 Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
 some failed (one line names them and where their rows are) or were lost (`harness.runner.outcome`);
@@ -12,9 +13,10 @@ import json
 import sys
 from pathlib import Path
 
-from harness import compare, sweep  # import only the standard library until they run
+from harness import compare, listing, sweep  # import only the standard library until they run
 from harness.cli_options import add_shared_options, progress_setting
-from harness.usage import UsageError
+from harness.readme import README_END, README_START, around, replace_section
+from harness.usage import UsageError, check_known
 
 
 def _suite_names() -> list[str]:
@@ -39,14 +41,16 @@ def _version() -> str:
 
 
 DESCRIPTION = """\
-swingbench: physics-informed neural networks against classical ODE solvers on the
-single-machine infinite-bus swing equation (Misyris et al., PESGM 2020).
+swingbench: physics-informed neural networks (PINNs, in PyTorch and JAX) against classical ODE
+solvers (scipy, CasADi CVODES, numba, diffrax, the implicit trapezoidal rule) on power-system swing
+dynamics: the single-machine infinite-bus case of Misyris et al. (PESGM 2020), multi-machine grids
+from 3 to 1445 machines (wscc9, kundur4, ieee39, MATPOWER's case118 ... case9241pegase) and
+three-phase fault cases with their critical clearing time.
 
 Every measurement is taken on this machine, in one run, warm, with pinned threads, against a tight
 DOP853 reference (rtol = atol = 1e-12); preparation (build, JIT, training) is reported apart from
 query time. Every speed verdict compares a PINN with the fastest classical option at least as
-accurate, on three rungs: the literature's baseline (scipy RK45 looped), the best Python-driven and
-the best compiled (numba, diffrax, trapezoid) classical solver."""
+accurate, timed paired and interleaved, over several seeds."""
 
 
 DOCS_HELP = ("write the documentation site's results pages into this folder: one page per case with its "
@@ -60,10 +64,10 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="swingbench", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"swingbench {_version()}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, title="commands", metavar="COMMAND")
 
     run = sub.add_parser(
-        "run", help="run suites and write tables to --out",
+        "run", help="measure: the suites for solvers x configs x seeds on cases, into --out",
         description="Run suites for solvers x configs x seeds; append each row to OUT/rows.jsonl as it is "
                     "measured; write tidy CSV, Markdown and LaTeX tables, plots and OUT/README.md; print the "
                     "tables. Trained models are cached in .cache/models by configuration, seed and code version.")
@@ -99,6 +103,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--noise-draws", type=int, default=None, metavar="K",
                      help="identify from K draws of the noise at each noise level above 0 (default 1): the "
                           "identification table then counts how often each 95 %% interval holds the truth")
+    run.add_argument("--verdict-pinn", action="append", default=[], metavar="NAME[:CONFIG]",
+                     help="measure this trained adapter (a plugin's too), in CONFIG or every named config of its own, "
+                          "in the verdict suite and the cct suite's search over the verdict seeds, in place of the JAX "
+                          "PINN's default, marching and fault-marching (repeatable); it must be among the selected "
+                          "solvers and configs")
     run.add_argument("--threads", type=int, default=2, help="threads for BLAS, torch and XLA (default 2)")
     run.add_argument("--update-readme", type=Path, default=None, metavar="README",
                      help="also replace the generated verdicts section of this README (and write the results "
@@ -120,7 +129,7 @@ def _parser() -> argparse.ArgumentParser:
                        "ADDRESS --nthreads 1)",
         dask_local_help="run the units on a local dask.distributed cluster of one worker process")
 
-    report = sub.add_parser("report", help="re-render tables from a results folder without running",
+    report = sub.add_parser("report", help="re-render a results folder's tables, figures and pages from its rows",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
                                         "with --update-readme and --docs, the README's verdicts and the results pages.")
     report.add_argument("directory", type=Path)
@@ -130,15 +139,8 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
     sweep.add_parser(sub)
     compare.add_parser(sub)
+    listing.add_parser(sub)
     return parser
-
-
-def _known(option: str, given: list[str] | None, known: list[str]) -> None:
-    """Every name in `given` must be known: one unknown name anywhere in the list is an error."""
-    unknown = [name for name in given or [] if name not in known]
-    if unknown:
-        raise UsageError(f"swingbench run: unknown {option} {', '.join(map(repr, unknown))}; "
-                         f"known: {', '.join(known)}")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -157,20 +159,33 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.report import write_report
     from harness.results_folder import interrupted_message, open_results
     from harness.runner import check_units, execute, outcome
-    from harness.runs import DEFAULT, FULL, QUICK, default_specs, parse_option, with_options
+    from harness.runs import (
+        DEFAULT,
+        FULL,
+        QUICK,
+        default_specs,
+        parse_option,
+        parse_verdict_pinns,
+        with_options,
+    )
     from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
     from systems.cases import CASES
 
-    _known("suite(s)", args.suite, list(SUITES))
-    _known("case(s)", args.case, list(CASES))
-    _known("solver(s)", args.solver, list(SOLVERS))
+    check_known("run", "suite(s)", args.suite, SUITES)
+    check_known("run", "case(s)", args.case, CASES)
+    check_known("run", "solver(s)", args.solver, SOLVERS)
     configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
-    _known("config(s)", args.config, configs)
+    check_known("run", "config(s)", args.config, configs)
     suites = args.suite or list(DEFAULT_SUITES)
     settings = replace(QUICK if args.quick else FULL if args.full else DEFAULT,
                        threads=args.threads, retrain=args.retrain)
+    if args.verdict_pinn:
+        try:
+            settings = replace(settings, verdict_pinns=parse_verdict_pinns(args.verdict_pinn))
+        except ValueError as exc:
+            raise UsageError(f"swingbench run: --verdict-pinn {exc}") from None
     if args.config:  # a config named runs on the fault cases too
         settings = replace(settings, fault_omit_marks=())
     if args.noise_draws is not None:
@@ -195,6 +210,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     specs = default_specs(args.solver, args.config, settings)
     if not specs:
         raise UsageError("swingbench run: no solver/config combination selected")
+    if args.verdict_pinn and {"verdict", "cct"} & set(suites):
+        _check_verdict_pinns(specs, settings)
     if args.option:
         try:
             specs = with_options(specs, dict(parse_option(text) for text in args.option))
@@ -206,7 +223,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UsageError(f"swingbench run: {exc}") from None
     if args.update_readme:
-        _readme_around(args.update_readme)
+        around(args.update_readme, README_START, README_END, "run")
     store, contents = open_results(args.out, args.resume, "run", overwrite=args.overwrite,
                                    same={"settings": settings.name, "threads": args.threads})
     outputs = [args.out] + ([args.update_readme] if args.update_readme else [])
@@ -231,6 +248,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     return outcome(rows, store.path, counts["lost"])
 
 
+def _check_verdict_pinns(specs: list, settings) -> None:
+    """UsageError unless every adapter of `settings.verdict_pinns` runs in one of its configs among `specs`."""
+    for name, configs, _ in settings.verdict_pinns:
+        if not any(spec.solver == name and spec.config in configs for spec in specs):
+            raise UsageError(f"swingbench run: --verdict-pinn {name} ({', '.join(configs)}) is not among the selected "
+                             "solvers and configs (--solver, --config; a run leaves out the configs marked ablation or "
+                             "large systems unless --config names them)")
+
+
 def _read_rows(store) -> list[dict]:
     """The store's rows, with one warning line on stderr for what had to be skipped."""
     contents = store.read()
@@ -238,31 +264,6 @@ def _read_rows(store) -> list[dict]:
     if warning:
         print(f"[swingbench] warning: {warning}", file=sys.stderr)
     return contents.rows
-
-
-README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
-
-
-def _readme_around(path: Path, command: str = "run") -> tuple[str, str]:
-    """The README's text before and after its table markers; UsageError, one line, when it cannot
-    be read or has no such section (checked before a run measures, and again when it writes)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"swingbench {command}: --update-readme: cannot read {path}: {exc}") from None
-    if README_START not in text or README_END not in text:
-        raise UsageError(f"swingbench {command}: --update-readme: {path} has no {README_START} ... {README_END} "
-                         "section to update")
-    head, rest = text.split(README_START, 1)
-    return head, rest.split(README_END, 1)[1]
-
-
-def update_readme(path: Path, block: str) -> None:
-    """Replace the text between the README's markers with `block` (`harness.pages.readme_block`)."""
-    from harness.store import atomic_write
-
-    head, tail = _readme_around(path)
-    atomic_write(path, head + README_START + block + README_END + tail)
 
 
 def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: Path) -> None:
@@ -275,7 +276,8 @@ def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results:
 
     write_pages(rows, meta, pages, results)
     if args.update_readme:
-        update_readme(args.update_readme, readme_block(rows, meta, args.update_readme, pages, results))
+        replace_section(args.update_readme, README_START, README_END,
+                        readme_block(rows, meta, args.update_readme, pages, results), args.command)
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -300,7 +302,7 @@ def cmd_report(args: argparse.Namespace) -> int:
                   file=sys.stderr)
             meta = {}
     if args.update_readme:
-        _readme_around(args.update_readme, "report")
+        around(args.update_readme, README_START, README_END, "report")
     try:
         print(write_report(rows, args.directory, meta))
         _write_docs(args, rows, meta, args.directory)
@@ -315,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     args.argv = argv  # for metadata and the command that resumes
     try:
         return {"run": cmd_run, "report": cmd_report, "sweep": sweep.cmd_sweep,
-                "compare": compare.cmd_compare}[args.command](args)
+                "compare": compare.cmd_compare, "list": listing.cmd_list}[args.command](args)
     except UsageError as exc:  # one line, no traceback; the interpreter exits with its code and prints nothing
         print(exc, file=sys.stderr)
         raise

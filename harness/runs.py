@@ -10,12 +10,12 @@ from pathlib import Path
 from typing import Any
 
 from harness.isolation import Limits
-from solvers import INTERFACE, SOLVERS, make_solver
+from solvers import INTERFACE, SOLVERS, UNAVAILABLE, make_solver
 from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, SWEEP_POINT, AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 from systems.faults import FAULT_CASES
 
-__all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs"]
+__all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs", "parse_verdict_pinns"]
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,8 @@ class Settings:
     measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
     took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
     (iterations per window, `harness.plan`). The verdict suite (`harness.suites.verdict`) measures
-    the PINNs of `verdict_pinns` ((adapter, configs, options its spec has), e.g. the JAX PINN; the
+    the PINNs of `verdict_pinns` ((adapter, configs, options its spec has): by default the JAX PINN,
+    `swingbench run --verdict-pinn` sets any trained adapters, `parse_verdict_pinns`; the
     suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
     the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
     than it needs to be; a fixed-step adapter sweeps its own steps), in
@@ -285,6 +286,28 @@ def parse_option(text: str) -> tuple[str, Any]:
         return key, json.loads(value)
     except json.JSONDecodeError:
         return key, value
+
+
+def parse_verdict_pinns(texts: Iterable[str]) -> tuple[tuple[str, tuple[str, ...], tuple[()]], ...]:
+    """`Settings.verdict_pinns` from "NAME" (every named config of adapter NAME) or "NAME:CONFIG"
+    texts, one entry per adapter in the order first named, its configs in the order given.
+    ValueError, one line, for an unknown or uninstalled adapter, one that does not train
+    (`trains`) or an unknown config."""
+    configs: dict[str, list[str]] = {}
+    for text in texts:
+        name, sep, config = text.partition(":")
+        if name not in SOLVERS:
+            raise ValueError(f"{text}: unknown solver {name!r}; known: {', '.join(SOLVERS)}")
+        cls = SOLVERS[name]
+        if cls is None:
+            raise ValueError(f"{text}: {name} is not available ({UNAVAILABLE[name]})")
+        if not cls.trains:
+            raise ValueError(f"{text}: {name} does not train; the verdict suite measures adapters that do (trains)")
+        if sep and config not in cls.CONFIGS:
+            raise ValueError(f"{text}: unknown config {config!r} of {name}; known: {', '.join(cls.CONFIGS)}")
+        chosen = configs.setdefault(name, [])
+        chosen.extend(c for c in ([config] if sep else cls.CONFIGS) if c not in chosen)
+    return tuple((name, tuple(chosen), ()) for name, chosen in configs.items())
 
 
 def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any]) -> list[SolverSpec]:

@@ -6,7 +6,9 @@ Only the standard library: the CLI's parser imports it.
 
 from __future__ import annotations
 
-__all__ = ["EXIT_FAILED", "EXIT_USAGE", "UsageError", "raise_if_interrupted"]
+from collections.abc import Iterable
+
+__all__ = ["EXIT_FAILED", "EXIT_USAGE", "UsageError", "check_known", "raise_if_interrupted"]
 
 EXIT_USAGE = 2  # argparse's status for a bad command line: bad input of any kind, before measuring
 EXIT_FAILED = 1  # the command ran, and some unit of work failed (or was lost): its rows say which
@@ -26,6 +28,16 @@ class UsageError(SystemExit):
 
     def __str__(self) -> str:
         return self.message
+
+
+def check_known(command: str, what: str, given: Iterable[str] | None, known: Iterable[str]) -> None:
+    """UsageError naming every name of `given` that is not in `known` and listing the known ones
+    ("swingbench run: unknown solver(s) 'rk4'; known: ..."); nothing when all are known."""
+    known = list(known)
+    unknown = [name for name in given or [] if name not in known]
+    if unknown:
+        raise UsageError(f"swingbench {command}: unknown {what} {', '.join(map(repr, unknown))}; "
+                         f"known: {', '.join(known)}")
 
 
 def raise_if_interrupted(exc: BaseException) -> None:

@@ -189,6 +189,15 @@ def test_cli_help(capsys):
     assert "--quick" in capsys.readouterr().out
 
 
+def test_top_level_help_says_what_is_measured_and_names_every_command(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert info.value.code == 0
+    assert "single-machine infinite-bus" in text and "1445 machines" in text and "critical clearing time" in text
+    assert all(f" {command} " in text for command in ("run", "report", "sweep", "compare", "list"))
+
+
 def test_cli_version_is_the_one_in_pyproject(capsys):
     import tomllib
     from pathlib import Path
