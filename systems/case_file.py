@@ -21,6 +21,7 @@ Every refusal is one ValueError naming the file and what is wrong.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -168,9 +169,10 @@ def file_cases(path: str | Path, machines: str | Path | None = None, name: str |
     out = [case]
     for contingency in faults:
         try:
-            out.append(fault_case(case, fault_networks(net, model, contingency)))
+            faulted = fault_case(case, fault_networks(net, model, contingency))
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+        out.append(dataclasses.replace(faulted, source=f"{case.source}; fault: {contingency.name} (given with the file)"))
     return out
 
 

@@ -67,6 +67,7 @@ def test_a_name_and_fault_cases(tmp_path):
     step, fault = file_cases(path, name="mine", faults=(Contingency("bus8-line8-9", 8, (8, 9)),))
     assert step.name == "mine" and fault.name == "mine-bus8-line8-9"
     assert fault.fault is not None and fault.delta0 == step.delta0
+    assert fault.source.endswith("; fault: bus8-line8-9 (given with the file)")
 
 
 def _with_impedance(asymmetric: bool = False):
