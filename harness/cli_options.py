@@ -7,6 +7,7 @@ This module imports only the standard library: the CLI imports it to build its p
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 
 PROGRESS = {"auto": None, "on": True, "off": False}  # --progress -> `solvers.progress.progress_enabled`
@@ -100,5 +101,10 @@ def register_file_cases(args: argparse.Namespace, command: str) -> list[str]:
     except ValueError as exc:
         raise UsageError(f"swingbench {command}: --case-file {exc}") from None
     for case in cases:
-        register_case(case.name)(lambda case=case: case)
+        register_case(case.name)(functools.partial(_same, case))
     return [case.name for case in cases]
+
+
+def _same(case):
+    """`case` itself: a registered builder of a case built already."""
+    return case
