@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-EXTRAS := torch,jax,diffrax,numba,dask,asv,crosscheck,dev
+EXTRAS := torch,jax,diffrax,numba,matpower,dask,asv,crosscheck,dev
 
 .PHONY: setup test bench bench-quick lint clean
 

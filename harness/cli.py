@@ -14,7 +14,12 @@ import sys
 from pathlib import Path
 
 from harness import compare, listing, sweep  # import only the standard library until they run
-from harness.cli_options import add_shared_options, progress_setting
+from harness.cli_options import (
+    add_case_file_options,
+    add_shared_options,
+    progress_setting,
+    register_file_cases,
+)
 from harness.readme import README_END, README_START, around, replace_section
 from harness.usage import UsageError, check_known
 
@@ -95,6 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                           "cases wscc9-bus8-line8-9, kundur4-bus7-line7-8a; --quick: smib-inference, wscc9 and "
                           "wscc9-bus8-line8-9); identification of a SMIB case uses smib-identification with "
                           "the (m, d) pairs, of a multi-machine case the case's own parameters")
+    add_case_file_options(run)
     size = run.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true",
                       help="smoke test, a few minutes: one seed, 150 PINN iterations, small timing budgets")
@@ -175,6 +181,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     check_known("run", "suite(s)", args.suite, SUITES)
     check_known("run", "case(s)", args.case, CASES)
+    args.case = (args.case or []) + register_file_cases(args, "run") or None
     check_known("run", "solver(s)", args.solver, SOLVERS)
     configs = sorted({c for name in args.solver or SOLVERS if SOLVERS[name] for c in SOLVERS[name].CONFIGS})
     check_known("run", "config(s)", args.config, configs)

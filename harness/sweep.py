@@ -41,7 +41,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from harness.cli_options import add_shared_options, progress_setting
+from harness.cli_options import (
+    add_case_file_options,
+    add_shared_options,
+    progress_setting,
+    register_file_cases,
+)
 from harness.sweep_spec import SweepSpec, load_spec, parse_spec, sweep_settings
 
 __all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "summary_table"]
@@ -165,6 +170,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         scheduler_help="run on this dask.distributed scheduler (e.g. tcp://host:8786) instead of joblib; give its "
                        "workers 1 thread each",
         dask_local_help="run on a local dask.distributed cluster of --workers processes, 1 thread each")
+    add_case_file_options(sweep)
     sweep.add_argument("--dry-run", action="store_true", help="validate SPEC, print the runs and exit")
     return sweep
 
@@ -177,6 +183,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     if args.workers < 1:
         raise UsageError("swingbench sweep: --workers must be >= 1")
+    register_file_cases(args, "sweep")  # SPEC's "cases" may name them
     try:
         spec = load_spec(args.spec)
     except ValueError as exc:

@@ -39,9 +39,13 @@ at 9241 buses, 0.4 s, and it compiles for seconds). The reduction is sparse, as 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
 
 from systems.cases import CASES, Case, register_case
 from systems.network import T_FINAL, ClassicalModel, classical_model, network_case, solve_power_flow
@@ -49,8 +53,8 @@ from systems.network import T_FINAL, ClassicalModel, classical_model, network_ca
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
 
-__all__ = ["FAMILY", "FAMILY_CASES", "F_HZ", "H_S", "RATING_FLOOR_MVA", "XD_PRIME", "family_case",
-           "family_model", "family_size", "merge_machines"]
+__all__ = ["FAMILY", "FAMILY_CASES", "F_HZ", "H_S", "RATING_FLOOR_MVA", "XD_PRIME", "MachineData", "family_case",
+           "family_model", "family_size", "machine_buses", "merge_machines"]
 
 # The family's larger networks, each a MATPOWER case of `pandapower.networks` of that name, in order
 # of size (machines: 54, 69, 260, 510, 1445): system frequency (Hz: US 60, European PEGASE 50) and
@@ -76,7 +80,7 @@ F_HZ = {name: f_hz for name, (f_hz, _) in _MEMBERS.items()}
 # pandapower.networks loader of each family member (wscc9 and ieee39 are MATPOWER case9 and case39).
 _LOADER = {"wscc9": "case9", "ieee39": "case39", **{name: name for name in FAMILY_CASES}}
 # Elements that classical_model has no model for: an in-service one is refused.
-_UNSUPPORTED = ("ward", "xward", "storage", "dcline", "impedance", "svc", "tcsc", "ssc", "vsc", "motor",
+_UNSUPPORTED = ("ward", "xward", "storage", "dcline", "svc", "tcsc", "ssc", "vsc", "motor",
                 "asymmetric_load", "asymmetric_sgen")
 
 
@@ -101,6 +105,12 @@ def _machines(net: pandapowerNet) -> dict[int, list[tuple[str, int]]]:
         for idx, bus in zip(frame.index[on], frame.bus.values[on]):
             found.setdefault(int(bus), []).append((table, int(idx)))
     return found
+
+
+def machine_buses(net: pandapowerNet) -> list[int]:
+    """The pandapower bus indices that hold an in-service gen or ext_grid (one machine each once
+    merged, `merge_machines`), sorted."""
+    return sorted(_machines(net))
 
 
 def family_size(name: str) -> tuple[int, int]:
@@ -137,18 +147,48 @@ def merge_machines(net: pandapowerNet) -> dict[int, float]:
     return plate
 
 
-def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
-    """The classical model of an unsolved pandapower `net` by the module's machine data rule.
+class MachineData(NamedTuple):
+    """One machine's data on its own rating: H (s), xd_prime (p.u.) and D (p.u. power per p.u.
+    speed deviation, so d_k = D S_k / (omega_s S_base) p.u. s/rad on the system base; the family's
+    d = 0.5 m is D = H)."""
 
-    Changes `net` in place: transformer phase shifts set to 0, machines merged per bus
-    (`merge_machines`), the power flow solved. Machine 0 = the largest operating P, then bus order.
-    f_hz: the system frequency (Hz). Raises ValueError naming
-    `net` if it has an in-service element classical_model does not model (ward, storage, dcline, ...).
-    """
+    H: float
+    xd_prime: float
+    D: float
+
+
+def _check_elements(net: pandapowerNet) -> None:
+    """ValueError naming the in-service elements of `net` that the classical model does not model,
+    and each asymmetric impedance (rft_pu != rtf_pu or xft_pu != xtf_pu: an unsymmetric Ybus). A
+    symmetric impedance is a series branch of pandapower's Ybus, r + jx = rft_pu + j xft_pu on its
+    sn_mva (its shunts gf/bf, gt/bt sit on the diagonal), and is modelled as such."""
     present = [t for t in _UNSUPPORTED if t in net and len(net[t]) and net[t].in_service.astype(bool).any()]
     if present:
         raise ValueError(f"net has in-service {', '.join(present)} element(s), which the classical "
                          "model does not model")
+    imp = net.impedance if "impedance" in net else None
+    if imp is not None and len(imp):
+        on = imp[imp.in_service.astype(bool)]
+        asym = on.index[(on.rft_pu.values != on.rtf_pu.values) | (on.xft_pu.values != on.xtf_pu.values)]
+        if len(asym):
+            i = int(asym[0])
+            raise ValueError(f"net: impedance {i} ({on.at[i, 'name']!r}) is asymmetric (rft_pu, xft_pu = "
+                             f"{on.at[i, 'rft_pu']:g}, {on.at[i, 'xft_pu']:g}; rtf_pu, xtf_pu = {on.at[i, 'rtf_pu']:g}, "
+                             f"{on.at[i, 'xtf_pu']:g}), which the classical model's symmetric network does not model")
+
+
+def family_model(net: pandapowerNet, f_hz: float, data: Mapping[int, MachineData] | None = None) -> ClassicalModel:
+    """The classical model of an unsolved pandapower `net` by the module's machine data rule.
+
+    Changes `net` in place: transformer phase shifts set to 0, machines merged per bus
+    (`merge_machines`), the power flow solved. Machine 0 = the largest operating P, then bus order.
+    f_hz: the system frequency (Hz). data: pandapower bus index -> `MachineData` of the merged
+    machine there, every machine bus (`machine_buses`) given, on the rating the rule gives; None:
+    the rule's H_S, XD_PRIME and d = DAMPING_PER_INERTIA m. Raises ValueError naming `net` if it
+    has an in-service element classical_model does not model (ward, storage, dcline, an
+    asymmetric impedance, ...).
+    """
+    _check_elements(net)
     if len(net.trafo):
         net.trafo["shift_degree"] = 0.0
     plate = merge_machines(net)
@@ -159,8 +199,18 @@ def family_model(net: pandapowerNet, f_hz: float) -> ClassicalModel:
     first = max(range(len(rows)), key=p.__getitem__)  # the first of equals in bus order
     order = [first] + [k for k in range(len(rows)) if k != first]
     rating = [max(plate[rows[k][0]], s[k], RATING_FLOOR_MVA) for k in order]
-    return classical_model(net, [rows[k][0] for k in order], H=H_S, xd_prime=XD_PRIME, machine_mva=rating,
-                           f_hz=f_hz)
+    buses = [rows[k][0] for k in order]
+    if data is None:
+        return classical_model(net, buses, H=H_S, xd_prime=XD_PRIME, machine_mva=rating, f_hz=f_hz)
+    missing = sorted(set(buses) - set(data))
+    if missing:
+        raise ValueError(f"data gives no machine data for the machine bus(es) {missing}")
+    H, xd, D = (np.array([getattr(data[b], key) for b in buses]) for key in MachineData._fields)
+    model = classical_model(net, buses, H=H, xd_prime=xd, machine_mva=rating, f_hz=f_hz)
+    d = D * np.asarray(rating) / (2.0 * np.pi * model.f_hz * model.base_mva)
+    if not (d > 0).all():
+        raise ValueError(f"data: D must be > 0, got {D.tolist()}")
+    return dataclasses.replace(model, d=d)
 
 
 @functools.cache

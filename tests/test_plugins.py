@@ -73,8 +73,10 @@ class Tiny(AbstractSolver):
 MISSING = "import swingbench_no_such_package  # noqa: F401\n"
 
 
-def install(site: Path, dist: str, entry_points: dict[str, str], modules: dict[str, str]) -> None:
-    """A distribution `dist` 0.1 in folder `site`: its modules and a dist-info with its entry points."""
+def install(site: Path, dist: str, entry_points: dict[str, str], modules: dict[str, str],
+            group: str = "swingbench.solvers") -> None:
+    """A distribution `dist` 0.1 in folder `site`: its modules and a dist-info with its entry points
+    in `group`."""
     for relative, source in modules.items():
         path = site / relative
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -83,7 +85,7 @@ def install(site: Path, dist: str, entry_points: dict[str, str], modules: dict[s
     info.mkdir(parents=True)
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1\n")
     lines = "".join(f"{name} = {value}\n" for name, value in entry_points.items())
-    (info / "entry_points.txt").write_text(f"[swingbench.solvers]\n{lines}")
+    (info / "entry_points.txt").write_text(f"[{group}]\n{lines}")
 
 
 @pytest.fixture(scope="module")
@@ -170,3 +172,31 @@ def test_asv_benchmarks_take_a_plugin_as_a_parameter(site, tmp_path):
     out = python(["-c", probe], [site], tmp_path, SWINGBENCH_ASV_QUICK="1")
     assert out.returncode == 0, out.stderr[-3000:]
     assert "tiny" in json.loads(out.stdout.strip().splitlines()[-1])
+
+
+GRID = """
+from pathlib import Path
+
+from systems.case_file import case_from_file
+
+
+def grid():
+    return case_from_file(Path(__file__).with_name("grid.json"), name="plugged")
+"""
+
+
+def test_a_package_brings_a_case_by_the_swingbench_cases_entry_points(tmp_path):
+    import pandapower as pp
+    import pandapower.networks as pn
+
+    site = tmp_path / "site"
+    install(site, "gridplugin", {"plugged": "gridplugin:grid", "wscc9": "gridplugin:grid"},
+            {"gridplugin/__init__.py": GRID}, group="swingbench.cases")
+    pp.to_json(pn.case9(), str(site / "gridplugin" / "grid.json"))
+    probe = ("import json, sys; from systems.cases import CASES; listed = 'gridplugin' in sys.modules; "
+             "print(json.dumps({'listed': 'plugged' in CASES, 'imported_by_listing': listed, "
+             "'n': CASES['plugged'].n, 'wscc9': CASES['wscc9'].source[:8]}))")
+    done = python(["-c", probe], [site], tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == {"listed": True, "imported_by_listing": False, "n": 3, "wscc9": "network:"}
+    assert "[swingbench] case 'wscc9' of gridplugin ignored: the name is taken" in done.stderr
