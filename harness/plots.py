@@ -28,7 +28,8 @@ __all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
 
 def figure3(frames: dict, names: Labels):
     """Best and worst trajectory (delta and omega of every machine, one line each), predicted vs
-    reference, for each PINN configuration's first seed (the paper's figure 3)."""
+    reference, for each PINN configuration's first seed (the paper's figure 3); none for a case
+    this process has not registered (a `--case-file` case, whose reference it cannot integrate)."""
     acc = ok(frames.get("accuracy"))
     if acc.empty or "best_pred" not in acc:
         return None
@@ -36,6 +37,8 @@ def figure3(frames: dict, names: Labels):
     if acc.empty:
         return None
     acc = acc[acc["seed"] == acc.groupby(["solver", "config"])["seed"].transform("min")]
+    if acc["case"].iloc[0] not in CASES:
+        return None
     specs = list(dict.fromkeys(label(acc)))
     fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
     case = CASES[acc["case"].iloc[0]]
