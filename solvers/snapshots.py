@@ -51,10 +51,10 @@ class Basis(NamedTuple):
         return self.vectors.shape[1]
 
 
-def pod_modes(rows: np.ndarray, k: int | None, energy: float) -> tuple[np.ndarray, float]:
+def pod_modes(rows: np.ndarray, k: int | None, energy: float, most: int | None = None) -> tuple[np.ndarray, float]:
     """The leading right singular vectors (n, k) of `rows` (N, n), the POD modes of its rows, and
     the fraction of the squared singular values they leave out. `k` None: the fewest modes that
-    keep `energy` of them. Each mode's largest entry is positive (SVD leaves the sign free). The
+    keep `energy` of them, at most `most` (None: no cap). Each mode's largest entry is positive (SVD leaves the sign free). The
     singular values are those of R from a QR of `rows` (n x n), not of the N x n matrix itself."""
     R = scipy.linalg.qr(rows, mode="r", check_finite=False)[0][:min(rows.shape)]
     s, vt = np.linalg.svd(R, full_matrices=False)[1:]
@@ -62,20 +62,21 @@ def pod_modes(rows: np.ndarray, k: int | None, energy: float) -> tuple[np.ndarra
     tail = np.append(np.cumsum(squared[::-1])[::-1], 0.0) / max(squared.sum(), np.finfo(float).tiny)
     if k is None:  # tail[j]: the fraction modes j, j + 1, ... hold
         k = max(1, int(np.argmax(tail <= 1.0 - energy)))
+        k = k if most is None else min(k, most)
     modes = vt[:k].T
     largest = modes[np.abs(modes).argmax(axis=0), np.arange(k)]
     return modes * np.where(largest < 0, -1.0, 1.0), float(tail[k])
 
 
-def pod_basis(deviations: np.ndarray, modes: int | None, tolerance: float) -> Basis:
+def pod_basis(deviations: np.ndarray, modes: int | None, tolerance: float, most: int | None = None) -> Basis:
     """The POD basis (`pod_modes`) of `deviations` (..., n), uncentred (so that a zero deviation,
     the initial state, is represented exactly): `modes` of them, or where None the fewest that keep
-    all but `tolerance` of the squared norm. A ValueError names `modes` when the snapshots span
+    all but `tolerance` of the squared norm, at most `most`. A ValueError names `modes` when the snapshots span
     fewer directions."""
     n = deviations.shape[-1]
     rows = deviations.reshape(-1, n)
     if modes is not None and modes > min(rows.shape):
         raise ValueError(f"option modes={modes} is larger than the snapshots allow: {rows.shape[0]} snapshots "
                          f"of {n} machines span at most {min(rows.shape)} directions")
-    vectors, left_out = pod_modes(rows, modes, 1.0 - tolerance)
+    vectors, left_out = pod_modes(rows, modes, 1.0 - tolerance, most)
     return Basis(np.ascontiguousarray(vectors), 1.0 - left_out)

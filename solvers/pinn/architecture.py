@@ -12,6 +12,7 @@ machine (delta_1..n), or two (delta_1..n, then omega_1..n).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,7 +21,36 @@ import numpy as np
 from solvers.pinn.config import PinnConfig
 from systems.cases import Case
 
-__all__ = ["Architecture", "init_theta", "start_guess"]
+__all__ = ["Architecture", "glorot_weights", "init_theta", "layer_shapes", "split_flat", "start_guess"]
+
+
+def layer_shapes(sizes: tuple[int, ...]) -> list[tuple[int, ...]]:
+    """Shapes of a dense network's flat parameter vector for layer sizes `sizes`:
+    W_0 (sizes[0], sizes[1]), b_0 (sizes[1],), ..., W_L, b_L."""
+    out: list[tuple[int, ...]] = []
+    for n_in, n_out in itertools.pairwise(sizes):
+        out += [(n_in, n_out), (n_out,)]
+    return out
+
+
+def split_flat(shapes: list[tuple[int, ...]], theta: Any) -> tuple[list[Any], int]:
+    """Views of the flat vector `theta` (numpy, torch or JAX: slicing and reshape only) in the
+    given shapes, and the offset after the last."""
+    arrays, start = [], 0
+    for shape in shapes:
+        size = int(np.prod(shape))
+        arrays.append(theta[start:start + size].reshape(shape))
+        start += size
+    return arrays, start
+
+
+def glorot_weights(sizes: tuple[int, ...], rng: np.random.Generator) -> list[np.ndarray]:
+    """Glorot/Xavier normal weights, std sqrt(2 / (fan_in + fan_out)), and zero biases, flattened
+    in `layer_shapes` order."""
+    parts = []
+    for n_in, n_out in itertools.pairwise(sizes):
+        parts += [rng.normal(0.0, np.sqrt(2.0 / (n_in + n_out)), (n_in, n_out)).ravel(), np.zeros(n_out)]
+    return parts
 
 
 @dataclass(frozen=True)
@@ -97,10 +127,7 @@ class Architecture:
     @property
     def shapes(self) -> list[tuple[int, ...]]:
         """Shapes in the flat vector: W_0 (2, w), b_0 (w,), ..., W_L (w, outputs), b_L (outputs,)."""
-        out: list[tuple[int, ...]] = []
-        for n_in, n_out in zip(self.sizes[:-1], self.sizes[1:]):
-            out += [(n_in, n_out), (n_out,)]
-        return out
+        return layer_shapes(self.sizes)
 
     @property
     def n_weights(self) -> int:
@@ -114,11 +141,7 @@ class Architecture:
         """The flat vector `theta` (numpy, torch or JAX: slicing and reshape only) as a list of
         views: W_0, b_0, ..., W_L, b_L in `shapes` order, then the (2n,) vector (log m_1..n,
         log d_1..n) when the architecture has the identification entries."""
-        arrays, start = [], 0
-        for shape in self.shapes:
-            size = int(np.prod(shape))
-            arrays.append(theta[start:start + size].reshape(shape))
-            start += size
+        arrays, start = split_flat(self.shapes, theta)
         if self.n_extra:
             arrays.append(theta[start:start + self.n_extra])
         return arrays
@@ -139,9 +162,7 @@ def init_theta(arch: Architecture, seed: int, m_init=1.0, d_init=1.0, window: in
     network draws); then log m_init, log d_init (numbers or (n,) p.u.) when the architecture has the
     2n identification entries."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x5EED, *([window] if window else [])]))
-    parts = []
-    for n_in, n_out in zip(arch.sizes[:-1], arch.sizes[1:]):
-        parts += [rng.normal(0.0, np.sqrt(2.0 / (n_in + n_out)), (n_in, n_out)).ravel(), np.zeros(n_out)]
+    parts = glorot_weights(arch.sizes, rng)
     if arch.n_extra:
         n = arch.machines
         parts.append(np.log(np.concatenate([np.broadcast_to(np.asarray(m_init, np.float64), (n,)),

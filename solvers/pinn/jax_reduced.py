@@ -25,7 +25,6 @@ from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, Positiv
 from solvers.pinn.optim import levenberg_marquardt
 from solvers.pinn.reduced import (
     Layout,
-    ReducedModel,
     WindowData,
     init_weights,
     query_functions,
@@ -142,10 +141,7 @@ class ReducedPinn(AbstractSolver):
         if options["basis"] == "pod":
             snapshots = solver_snapshots(case, nodes, t_data, options["snapshot_rtol"])[0] - delta0
             snapshot_s = time.perf_counter() - start
-            modes = options["modes"]
-            basis = pod_basis(snapshots, modes, options["pod_tolerance"])
-            if modes is None and basis.modes > options["max_modes"]:
-                basis = Basis(basis.vectors[:, :options["max_modes"]], pod_basis(snapshots, options["max_modes"], 0.0).energy)
+            basis = pod_basis(snapshots, options["modes"], options["pod_tolerance"], most=options["max_modes"])
         else:
             basis = linear_basis(case, options["modes"] or min(options["max_modes"], case.n))
         basis_s = time.perf_counter() - start - snapshot_s
@@ -170,7 +166,6 @@ class ReducedPinn(AbstractSolver):
             thetas = np.vstack([thetas, theta])
             iterations += result.iterations
             losses.append(result.loss)
-        self._model = ReducedModel(U, delta0, v0, layout, thetas)
         self._queries = query_functions(layout)
         with jax.enable_x64(True):
             self._args = tuple(jnp.asarray(x) for x in (thetas, U, delta0, v0))

@@ -26,10 +26,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from solvers.pinn.architecture import glorot_weights, layer_shapes, split_flat
 from systems.cases import Case
 from systems.model import Coupling, coupling, electrical_power
 
-__all__ = ["Layout", "ReducedModel", "WindowData", "init_weights", "query_functions", "window_functions"]
+__all__ = ["Layout", "WindowData", "init_weights", "query_functions", "window_functions"]
 
 
 @dataclass(frozen=True)
@@ -44,10 +45,7 @@ class Layout:
 
     @property
     def shapes(self) -> list[tuple[int, ...]]:
-        out: list[tuple[int, ...]] = []
-        for n_in, n_out in zip(self.sizes[:-1], self.sizes[1:]):
-            out += [(n_in, n_out), (n_out,)]
-        return out
+        return layer_shapes(self.sizes)
 
     @property
     def n_params(self) -> int:
@@ -55,21 +53,14 @@ class Layout:
 
     def split(self, theta: Any) -> list[tuple[Any, Any]]:
         """[(W, b), ...] views of the flat vector `theta`."""
-        arrays, start = [], 0
-        for shape in self.shapes:
-            size = int(np.prod(shape))
-            arrays.append(theta[start:start + size].reshape(shape))
-            start += size
+        arrays = split_flat(self.shapes, theta)[0]
         return list(zip(arrays[0::2], arrays[1::2]))
 
 
 def init_weights(layout: Layout, seed: int) -> np.ndarray:
     """Glorot-normal weights and zero biases (float64), drawn from `seed`."""
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x5EED, 0xBA515]))
-    parts = []
-    for n_in, n_out in zip(layout.sizes[:-1], layout.sizes[1:]):
-        parts += [rng.normal(0.0, np.sqrt(2.0 / (n_in + n_out)), (n_in, n_out)).ravel(), np.zeros(n_out)]
-    return np.concatenate(parts)
+    return np.concatenate(glorot_weights(layout.sizes, rng))
 
 
 def _coefficients(layout: Layout, theta: Any, tau: Any, p: Any, a_s: Any, v_s: Any) -> Any:
@@ -93,23 +84,6 @@ def _accelerations(layout: Layout, theta: Any, tau: Any, p: Any, a_s: Any, v_s: 
     """(a, a', a'') at scalar tau, p."""
     (a, a_t), (_, a_tt) = jax.jvp(lambda s: _rates(layout, theta, s, p, a_s, v_s), (tau,), (jnp.ones_like(tau),))
     return a, a_t, a_tt
-
-
-@dataclass(frozen=True, eq=False)
-class ReducedModel:
-    """A trained reduced PINN: `basis` U (n, k), `delta0` (n,) rad, `v0` = U^T omega0 (k,) rad/s,
-    `layout` of every window's network, `thetas` (W, n_params) float64, window w spanning
-    [w window, (w + 1) window] s (the last one open to the right)."""
-
-    basis: np.ndarray
-    delta0: np.ndarray
-    v0: np.ndarray
-    layout: Layout
-    thetas: np.ndarray
-
-    @property
-    def windows(self) -> int:
-        return self.thetas.shape[0]
 
 
 def _starts(layout: Layout, thetas: Any, p: Any, v0: Any) -> tuple[tuple[Any, Any], tuple[Any, Any]]:
