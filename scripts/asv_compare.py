@@ -5,14 +5,15 @@ editable), so asv cannot install another commit itself. This script checks each 
 its own git worktree under .asv/compare/trees/, runs asv there in the same .venv with that
 worktree first on the import path (ASV_PYTHONPATH: asv drops PYTHONPATH), records the results
 under the commit's hash in .asv/compare/results/ (scratch, never the kept history of
-benchmarks/results/), then compares the two as `asv compare --split --factor F` does. Each commit
+benchmarks/results/), then compares the two as `asv compare --split --factor F` does (only the
+benchmarks that changed, as `asv continuous` shows them, unless --all). Each commit
 is measured with its own benchmarks/; a benchmark whose code differs between them is "not
 comparable" (asv's benchmark version), not a regression.
 
 Exit status: 1 when a benchmark got slower (or larger) than the factor allows and asv's statistics
 call the difference significant, or started failing; 0 otherwise.
 
-    python scripts/asv_compare.py [--base REV] [--factor 1.1] [ASV RUN OPTIONS, e.g. --bench REGEX]
+    python scripts/asv_compare.py [--base REV] [--factor 1.1] [--all] [ASV RUN OPTIONS, e.g. --bench REGEX]
 """
 
 from __future__ import annotations
@@ -68,6 +69,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--base", default="main", help="the commit to compare HEAD against (default: main)")
     parser.add_argument("--factor", type=float, default=1.1, help="the ratio beyond which a change counts")
+    parser.add_argument("--all", action="store_true",
+                        help="every benchmark in the table, not only those that changed (as asv continuous)")
     # any other option (`--bench REGEX`, `-a repeat=3`, ...) goes to both `asv run`s
     args, asv_args = parser.parse_known_args()
 
@@ -89,7 +92,8 @@ def main() -> int:
     print(f"\n[asv-compare] {args.base} ({base[:12]}) -> HEAD ({head[:12]}), factor {args.factor}, "
           f"machine {machine}:\n", flush=True)
     worsened, _ = Compare.print_table(Config.load(str(config)), base, head, factor=args.factor, split=True,
-                                      machine=machine, commit_names={base: args.base, head: "HEAD"})
+                                      only_changed=not args.all, machine=machine,
+                                      commit_names={base: args.base, head: "HEAD"})
     if worsened:
         print(f"\n[asv-compare] REGRESSION: HEAD is slower than {args.base} beyond {args.factor}x (or fails)")
         return 1
