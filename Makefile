@@ -45,7 +45,8 @@ clean:
 # checkout first on the import path (ASV_PYTHONPATH; asv drops PYTHONPATH), so a worktree that shares
 # another checkout's .venv measures its own code. `make asv` keeps its results in benchmarks/results/
 # (committed: the history) under the HEAD commit; `make asv-publish` renders that history to
-# .asv/html. `make asv-compare` is the regression gate between BASE and HEAD (scripts/asv_compare.py).
+# .asv/html, which `make docs` serves at site/asv/. `make asv-compare` is the regression gate
+# between BASE and HEAD (scripts/asv_compare.py).
 # BENCH=REGEX (asv --bench; it matches "name(param, ...)" too) runs a subset of the benchmarks.
 # `make asv-quick` runs each benchmark once with small budgets, saves nothing, and fails (asv exits 2)
 # if any benchmark fails.
@@ -76,5 +77,6 @@ asv-publish: setup
 .PHONY: docs
 EXTRAS := $(EXTRAS),docs
 
-docs: setup
+# asv-publish first: the site serves the asv history of .asv/html at asv/ (scripts/mkdocs_extra_files.py)
+docs: setup asv-publish
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
