@@ -41,25 +41,42 @@ lint: setup
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
 
-# asv benchmarks (benchmarks/, asv.conf.json) in the project's own .venv (`-E existing`). `make asv`
-# stores its results in .asv/results under the HEAD commit (then `asv publish` -> .asv/html);
+# asv benchmarks (benchmarks/, asv.conf.json) in the project's own .venv (`-E existing`), with this
+# checkout first on the import path (ASV_PYTHONPATH; asv drops PYTHONPATH), so a worktree that shares
+# another checkout's .venv measures its own code. `make asv` keeps its results in benchmarks/results/
+# (committed: the history) under the HEAD commit; `make asv-publish` renders that history to
+# .asv/html, which `make docs` serves at site/asv/. `make asv-compare` is the regression gate
+# between BASE and HEAD (scripts/asv_compare.py).
+# BENCH=REGEX (asv --bench; it matches "name(param, ...)" too) runs a subset of the benchmarks.
 # `make asv-quick` runs each benchmark once with small budgets, saves nothing, and fails (asv exits 2)
 # if any benchmark fails.
-.PHONY: asv asv-quick
-ASV_RUN = $(BIN)/asv run --environment existing:$(CURDIR)/$(BIN)/python --show-stderr
+.PHONY: asv asv-quick asv-compare asv-publish
+ASV_RUN = ASV_PYTHONPATH=$(CURDIR) $(BIN)/asv run --environment existing:$(abspath $(BIN))/python --show-stderr
+ASV_BENCH = $(if $(BENCH),--bench '$(BENCH)')
+# the commit `make asv-compare` measures HEAD against: origin/main where there is one, else main
+BASE ?= $(shell git rev-parse --verify -q origin/main > /dev/null && echo origin/main || echo main)
 
 asv: setup
 	$(BIN)/asv machine --yes > /dev/null
-	$(ASV_RUN) --set-commit-hash $$(git rev-parse HEAD) --durations 10
+	$(ASV_RUN) --set-commit-hash $$(git rev-parse HEAD) --durations 10 $(ASV_BENCH)
 
 asv-quick: setup
 	$(BIN)/asv machine --yes > /dev/null
-	SWINGBENCH_ASV_QUICK=1 $(ASV_RUN) --quick --durations 5
+	SWINGBENCH_ASV_QUICK=1 $(ASV_RUN) --quick --durations 5 $(ASV_BENCH)
+
+# exit 1 when a benchmark got slower than 1.1x beyond asv's statistics, or started failing
+asv-compare: setup
+	$(BIN)/asv machine --yes > /dev/null
+	$(BIN)/python scripts/asv_compare.py --base $(BASE) --factor 1.1 $(ASV_BENCH)
+
+asv-publish: setup
+	$(BIN)/asv publish
 
 # the documentation site (mkdocs.yml, docs/) into site/; --strict: any warning (a broken link, an
 # anchor that is not there) fails the build. NO_MKDOCS_2_WARNING: without Material's end-of-life banner
 .PHONY: docs
 EXTRAS := $(EXTRAS),docs
 
-docs: setup
+# asv-publish first: the site serves the asv history of .asv/html at asv/ (scripts/mkdocs_extra_files.py)
+docs: setup asv-publish
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
