@@ -130,7 +130,7 @@ def _block(frames_a: dict, frames_b: dict, sources: str) -> str:
     counts = both["agreement"].value_counts() if not both.empty else pd.Series(dtype=int)
     summary = (f"{len(both)} verdicts in both runs: {counts.get(AGREE, 0)} agree, {counts.get(FLIP, 0)} flip, "
                f"{len(both) - counts.get(AGREE, 0) - counts.get(FLIP, 0)} are a tie in one run and not in the other."
-               + _spread(both))
+               + _spread(both) + _sigma(frames_a, frames_b))
     return head + f"{summary}\n\n" + (names.table(table).to_markdown(index=False) if not table.empty else "") + "\n"
 
 
@@ -146,12 +146,25 @@ def _spread(both) -> str:
     timed = both.dropna(subset=["ratio A", "ratio B"])
     if timed.empty:
         return ""
-    outside = ((timed["ratio B"] < timed["ratio_low A"]) | (timed["ratio B"] > timed["ratio_high A"])).sum()
+    inside = ((timed["ratio B"] >= timed["ratio_low A"]) & (timed["ratio B"] <= timed["ratio_high A"])).sum()
     factor = (timed["ratio A"] / timed["ratio B"]).map(lambda x: max(x, 1 / x))
     top = timed.loc[factor.idxmax()]
-    return (f" Of the {len(timed)} ratios of run B, {outside} lie outside run A's 95 % interval; between the runs a "
-            f"ratio moved by a factor of {factor.median():.2f} (median), at most {factor.max():.2f} "
-            f"({top['case']}, {top['query']}).")
+    return (f" Of the {len(timed)} ratios of run B, {inside} ({100 * inside / len(timed):.0f} %) lie inside run A's 95 % "
+            f"interval; between the runs a ratio moved by a factor of {factor.median():.2f} (median), at most "
+            f"{factor.max():.2f} ({top['case']}, {top['query']}).")
+
+
+def _sigma(frames_a: dict, frames_b: dict) -> str:
+    """The run-to-run spread of the two runs (`run_to_run_sigma`) beside the one the intervals
+    assume (`RUN_TO_RUN`): "" without seed rows timed in both."""
+    from harness.paired import RUN_TO_RUN
+    from harness.verdict_table import run_to_run_sigma
+
+    sigma, n = run_to_run_sigma(frames_a, frames_b)
+    if not n:
+        return ""
+    return (f" From the {n} seed rows both runs timed, the spread of log(ratio) between the runs beyond each run's "
+            f"own samples is {sigma:.3f} (the intervals assume {RUN_TO_RUN:g}).")
 
 
 def cmd_compare(args: argparse.Namespace) -> int:

@@ -19,14 +19,19 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NO_RIVAL", "PINN_FASTER", "SAMPLE_S", "TIE", "TIE_FACTOR", "calls_per_sample",
-           "interleaved", "ratio_interval", "verdict_label", "warm_call_s"]
+__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NO_RIVAL", "PINN_FASTER", "RUN_TO_RUN", "SAMPLE_S", "TIE", "TIE_FACTOR",
+           "calls_per_sample", "interleaved", "ratio_interval", "verdict_label", "warm_call_s"]
 
 SAMPLE_S = 2e-3  # a sample lasts at least this long (s): fast calls are timed in blocks
 CONFIDENCE = 0.95
 # A side is called faster only when the whole 95 % interval of the ratio lies beyond this factor;
 # otherwise the verdict is a tie (between two runs on this machine a median moves by up to ~1.2x).
 TIE_FACTOR = 1.2
+# The spread of a ratio from one run to the next on this machine beyond what one run's paired samples
+# show: the standard deviation of log(ratio) between two runs of the same seeds with retrained models
+# (0.104 between the bench and the verdict run, rounded up: `swingbench compare results results/verdicts`;
+# docs/methods.md, "Intervals across runs").
+RUN_TO_RUN = 0.11
 PINN_FASTER, CLASSICAL_FASTER, TIE = "PINN faster", "classical faster", "tie"
 NO_RIVAL = "no rival"  # no sweep point as accurate as the PINN, or every such point out of time
 
@@ -85,22 +90,31 @@ def _median_ratio(rival: np.ndarray, pinn: np.ndarray, axis: int = -1) -> np.nda
     return np.median(rival, axis=axis) / np.median(pinn, axis=axis)
 
 
-def ratio_interval(pinn_s, rival_s, seed: int = 0, resamples: int = 4999) -> tuple[float, float, float]:
+def ratio_interval(pinn_s, rival_s, seed: int = 0, resamples: int = 4999,
+                   run_to_run: float = RUN_TO_RUN) -> tuple[float, float, float]:
     """(ratio, low, high): the rival's median time over the PINN's (> 1: the PINN is faster) and
-    its `CONFIDENCE` interval by the percentile bootstrap over the paired samples
-    (`scipy.stats.bootstrap`, paired: a resample keeps the two samples of one moment together),
-    seeded so the same samples give the same interval. Needs >= 2 pairs of positive times."""
+    its `CONFIDENCE` interval. Two parts, added on the log scale: the percentile bootstrap over the
+    paired samples (`scipy.stats.bootstrap`, paired: a resample keeps the two samples of one moment
+    together; seeded, so the same samples give the same interval), the spread within one run; and a
+    normal term of standard deviation `run_to_run` (of log(ratio)), the spread between runs that
+    one run's samples cannot show (`RUN_TO_RUN`). Each side's half-width is sqrt(b**2 + (z s)**2),
+    b that side's bootstrap half-width, z the normal quantile. Needs >= 2 pairs of positive times."""
     pinn, rival = np.asarray(pinn_s, float), np.asarray(rival_s, float)
     if pinn.shape != rival.shape or pinn.ndim != 1 or pinn.size < 2:
         raise ValueError(f"ratio_interval needs two equal 1-D samples of >= 2 times, got {pinn.shape}, {rival.shape}")
     if not (np.all(pinn > 0) and np.all(rival > 0)):
         raise ValueError("ratio_interval needs positive times")
     ratio = float(_median_ratio(rival, pinn))
-    if np.ptp(pinn) == 0 and np.ptp(rival) == 0:  # no spread: the bootstrap has nothing to resample
-        return ratio, ratio, ratio
-    res = stats.bootstrap((rival, pinn), _median_ratio, paired=True, vectorized=True, n_resamples=resamples,
-                          confidence_level=CONFIDENCE, method="percentile", rng=np.random.default_rng(seed))
-    return ratio, float(res.confidence_interval.low), float(res.confidence_interval.high)
+    low = high = ratio
+    if np.ptp(pinn) > 0 or np.ptp(rival) > 0:  # without spread the bootstrap has nothing to resample
+        res = stats.bootstrap((rival, pinn), _median_ratio, paired=True, vectorized=True, n_resamples=resamples,
+                              confidence_level=CONFIDENCE, method="percentile", rng=np.random.default_rng(seed))
+        low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
+    if run_to_run == 0:
+        return ratio, low, high
+    between = float(stats.norm.ppf(0.5 + CONFIDENCE / 2)) * run_to_run
+    below, above = math.log(ratio / low), math.log(high / ratio)
+    return ratio, ratio * math.exp(-math.hypot(below, between)), ratio * math.exp(math.hypot(above, between))
 
 
 def verdict_label(low: float, high: float) -> str:

@@ -13,12 +13,21 @@ import math
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from harness.analysis import GRID_QUERY, POINT_QUERY, fmt, label, ok
-from harness.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
+from harness.paired import (
+    CLASSICAL_FASTER,
+    CONFIDENCE,
+    NO_RIVAL,
+    PINN_FASTER,
+    TIE,
+    TIE_FACTOR,
+    ratio_interval,
+)
 
-__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "verdict_table",
-           "verdicts"]
+__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "run_to_run_sigma",
+           "verdict_table", "verdicts"]
 
 # The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
 HEADLINE = (GRID_QUERY, "1 trajectories x 201 times", POINT_QUERY)
@@ -138,3 +147,31 @@ def compare_table(frames_a: dict, frames_b: dict) -> pd.DataFrame:
     return pd.DataFrame([{"case": r["case"], "query": r["query"], "PINN": r["pinn"],
                           "run A": f"{r['verdict A']}, {_ratio(r, ' A')}", "run B": f"{r['verdict B']}, {_ratio(r, ' B')}",
                           "agreement": r["agreement"]} for _, r in c.iterrows()])
+
+
+def run_to_run_sigma(frames_a: dict, frames_b: dict) -> tuple[float, int]:
+    """(sigma, n): the standard deviation of log(ratio) from one run to the other beyond what each
+    run's paired samples show, from the n seed rows both runs timed (same case, PINN, query and
+    seed): with d the difference of the two log ratios and s_A, s_B the standard errors of each
+    within its run (the bootstrap alone, `ratio_interval(..., run_to_run=0)`, half its log width
+    over the normal quantile), E[d**2] = s_A**2 + s_B**2 + 2 sigma**2; sigma from the means, 0 when
+    the within-run spread explains all of it; (nan, 0) without such rows."""
+    z = float(stats.norm.ppf(0.5 + CONFIDENCE / 2))
+    key = ["case", "pinn", "query", "pinn_seed"]
+
+    def timed(frames: dict) -> pd.DataFrame:
+        rows = ok(frames.get("verdict"))
+        if rows.empty or "pinn_samples_s" not in rows:
+            return pd.DataFrame(columns=[*key, "log_ratio", "se"])
+        rows = rows[rows["pinn_samples_s"].map(lambda x: isinstance(x, list) and len(x) >= 2)]
+        intervals = [ratio_interval(p, r, run_to_run=0) for p, r in zip(rows["pinn_samples_s"], rows["rival_samples_s"])]
+        return pd.DataFrame({**{k: rows[k].to_numpy() for k in key[:-1] if k != "pinn"}, "pinn": label(rows).to_numpy(),
+                             "pinn_seed": rows["pinn_seed"].to_numpy(),
+                             "log_ratio": [math.log(r) for r, _, _ in intervals],
+                             "se": [math.log(high / low) / (2 * z) for _, low, high in intervals]})
+
+    both = timed(frames_a).merge(timed(frames_b), on=key, suffixes=("_a", "_b"))
+    if both.empty:
+        return math.nan, 0
+    excess = float(np.mean((both["log_ratio_a"] - both["log_ratio_b"]) ** 2) - np.mean(both["se_a"] ** 2 + both["se_b"] ** 2))
+    return math.sqrt(max(excess, 0.0) / 2), len(both)

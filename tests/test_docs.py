@@ -132,3 +132,14 @@ def test_a_verdict_s_rival_is_named_like_a_spec_of_the_rows_every_option_shown()
     names = Labels({"verdict": rows})
     assert names("numba-rk [rk4, parallel=True, dt=0.2]") == "numba-rk rk4 · parallel · dt=0.2"
     assert names("jax-pinn [marching, max_iterations=100]") == "jax-pinn marching"
+
+
+def test_the_coverage_table_of_the_methods_page_is_the_rows_of_its_csv():
+    """docs/methods.md's table of interval coverage across runs quotes results/interval-coverage.csv
+    (written by scripts/interval_coverage.py), row for row."""
+    page = (ROOT / "docs" / "methods.md").read_text(encoding="utf-8")
+    table = page.split("<!-- coverage rows:", 1)[1].split("\n\n", 1)[0].splitlines()[1:]
+    expected = [f"| {r.run_a} | {r.run_b} | {r.run_to_run:g} | {r.b_inside_a} of {r.timed_in_both} "
+                f"({r.b_inside_a_pct:.1f} %) | {r.agree} / {r.flip} / {r.tie_in_one} |"
+                for r in pd.read_csv(ROOT / "results" / "interval-coverage.csv").itertuples()]
+    assert table == expected

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from harness.paired import (
     CLASSICAL_FASTER,
     PINN_FASTER,
+    RUN_TO_RUN,
     SAMPLE_S,
     TIE,
     TIE_FACTOR,
@@ -42,14 +44,28 @@ def test_the_interval_holds_the_ratio_of_medians_and_is_reproducible():
     rng = np.random.default_rng(1)
     pinn = 1e-3 * (1 + 0.05 * rng.standard_normal(8))
     rival = 3e-3 * (1 + 0.05 * rng.standard_normal(8))
-    ratio, low, high = ratio_interval(pinn, rival)
+    ratio, low, high = ratio_interval(pinn, rival, run_to_run=0)
     assert ratio == pytest.approx(np.median(rival) / np.median(pinn))
     assert low < ratio < high and 2.5 < low and high < 3.5
-    assert ratio_interval(pinn, rival) == (ratio, low, high)  # seeded: the same samples, the same interval
+    assert ratio_interval(pinn, rival, run_to_run=0) == (ratio, low, high)  # seeded: the same samples, the same interval
+
+
+def test_the_run_to_run_spread_widens_each_side_on_the_log_scale():
+    rng = np.random.default_rng(1)
+    pinn, rival = 1e-3 * (1 + 0.05 * rng.standard_normal(8)), 3e-3 * (1 + 0.05 * rng.standard_normal(8))
+    ratio, low, high = ratio_interval(pinn, rival, run_to_run=0)
+    z = stats.norm.ppf(0.975)
+    wide = ratio_interval(pinn, rival, run_to_run=0.1)
+    assert wide[0] == ratio
+    assert np.log(ratio / wide[1]) == pytest.approx(np.hypot(np.log(ratio / low), 0.1 * z))
+    assert np.log(wide[2] / ratio) == pytest.approx(np.hypot(np.log(high / ratio), 0.1 * z))
+    assert ratio_interval(pinn, rival) == ratio_interval(pinn, rival, run_to_run=RUN_TO_RUN)
 
 
 def test_samples_without_spread_give_a_point_interval_and_bad_samples_are_refused():
-    assert ratio_interval([1.0, 1.0], [2.0, 2.0]) == (2.0, 2.0, 2.0)
+    assert ratio_interval([1.0, 1.0], [2.0, 2.0], run_to_run=0) == (2.0, 2.0, 2.0)
+    _, low, high = ratio_interval([1.0, 1.0], [2.0, 2.0])
+    assert (low, high) == pytest.approx((2 * np.exp(-1.959964 * RUN_TO_RUN), 2 * np.exp(1.959964 * RUN_TO_RUN)))
     with pytest.raises(ValueError, match="equal 1-D"):
         ratio_interval([1.0, 2.0], [1.0])
     with pytest.raises(ValueError, match="positive"):

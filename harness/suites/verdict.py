@@ -27,6 +27,7 @@ import numpy as np
 from harness.paired import (
     CLASSICAL_FASTER,
     NO_RIVAL,
+    RUN_TO_RUN,
     calls_per_sample,
     interleaved,
     ratio_interval,
@@ -142,7 +143,8 @@ def _row(plan: dict, settings: Settings, rivals: Rivals) -> dict:
             "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
             "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(plan["calls"]),
-            "ratio": ratio, "ratio_low": low, "ratio_high": high, "label": verdict_label(low, high)}
+            "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN,
+            "label": verdict_label(low, high)}
 
 
 SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True, own_query_path=True)

@@ -1,0 +1,64 @@
+"""Do the verdicts' intervals hold across runs? For pairs of results folders, each verdict's interval
+recomputed from its stored paired samples under a rule (the bootstrap alone, or with the run-to-run
+term `RUN_TO_RUN`), then: how many of run B's ratios lie inside run A's interval, and how many
+labels agree, flip or are a tie in one run only. One CSV row per pair and rule:
+
+    python scripts/interval_coverage.py results results/verdicts results/verdicts-rerun \
+        --out results/interval-coverage.csv
+
+compares the first folder with each of the others (and the others among themselves).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from pathlib import Path
+
+import pandas as pd
+
+from harness.paired import RUN_TO_RUN, ratio_interval, verdict_label
+from harness.sections import suite_frames
+from harness.store import RowStore
+from harness.verdict_table import AGREE, FLIP, compare_runs, run_to_run_sigma
+
+
+def _frames(folder: Path, run_to_run: float) -> dict:
+    """The folder's rows by suite, the verdict rows' ratio, interval and label recomputed from their
+    samples with `run_to_run` (rows without samples as they are)."""
+    frames = suite_frames(RowStore(folder, create=False).read().rows)
+    v = frames["verdict"].copy()
+    timed = v["pinn_samples_s"].map(lambda x: isinstance(x, list) and len(x) >= 2)
+    for i in v.index[timed]:
+        ratio, low, high = ratio_interval(v.at[i, "pinn_samples_s"], v.at[i, "rival_samples_s"], run_to_run=run_to_run)
+        v.loc[i, ["ratio", "ratio_low", "ratio_high", "label"]] = [ratio, low, high, verdict_label(low, high)]
+    return {**frames, "verdict": v}
+
+
+def coverage(run_a: Path, run_b: Path, run_to_run: float) -> dict:
+    a, b = _frames(run_a, run_to_run), _frames(run_b, run_to_run)
+    both = compare_runs(a, b)
+    timed = both.dropna(subset=["ratio A", "ratio B"])
+    inside = int(((timed["ratio B"] >= timed["ratio_low A"]) & (timed["ratio B"] <= timed["ratio_high A"])).sum())
+    sigma, pairs = run_to_run_sigma(a, b)
+    counts = both["agreement"].value_counts()
+    return {"run_a": run_a.as_posix(), "run_b": run_b.as_posix(), "run_to_run": run_to_run, "verdicts": len(both),
+            "timed_in_both": len(timed), "b_inside_a": inside, "b_inside_a_pct": round(100 * inside / len(timed), 1),
+            "agree": int(counts.get(AGREE, 0)), "flip": int(counts.get(FLIP, 0)),
+            "tie_in_one": int(len(both) - counts.get(AGREE, 0) - counts.get(FLIP, 0)),
+            "sigma_measured": round(sigma, 4), "seed_rows_in_both": pairs}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folders", type=Path, nargs="+", metavar="DIR")
+    parser.add_argument("--out", type=Path, required=True, help="the CSV to write")
+    args = parser.parse_args()
+    rows = [coverage(a, b, rule) for a, b in itertools.combinations(args.folders, 2) for rule in (0.0, RUN_TO_RUN)]
+    table = pd.DataFrame(rows)
+    table.to_csv(args.out, index=False)
+    print(table.to_string(index=False))
+
+
+if __name__ == "__main__":
+    main()
