@@ -3,7 +3,7 @@
 `make setup` runs `python -m solvers.numba_cache`, so that the first test run or benchmark does not
 spend a minute compiling: a cached kernel loads in a fraction of a second. What a kernel costs to
 compile is still preparation wherever it happens (an adapter's `fit`), never query time. The
-kernels of `solvers.numba_kernels` are compiled per number of machines n: here the SMIB's (n = 1)
+kernels of `solvers.classical.kernels.rk` are compiled per number of machines n: here the SMIB's (n = 1)
 and, through numba-rk's own preparation, those of the paper's network sizes that the tests and the
 tests use (`PREPARED_KERNELS`); another n or variant compiles its own on first use, into the same
 cache.
@@ -23,7 +23,7 @@ PREPARED_KERNELS = (
     *(("wscc9", method, False, True) for method in ("rk4", "dopri5", "dop853")),
     ("wscc9", "dop853", True, False),
     ("ieee39", "rk4", False, False),
-    ("wscc9-bus8-line8-9", "dop853", False, False),  # a fault case: `solvers.numba_faults`' kernel
+    ("wscc9-bus8-line8-9", "dop853", False, False),  # a fault case: `solvers.classical.kernels.rk_faults`' kernel
 )
 
 
@@ -32,9 +32,9 @@ def _network_kernels() -> None:
     points kernels, and the sensitivities' where named), wscc9's with the sparse network (numba-rk's
     and the trapezoid's, serial and parallel), pod-spline's query kernels, and the PINN query
     evaluator of wscc9's architecture."""
-    from solvers.numba_rk import NumbaRK
-    from solvers.pod_spline import PodSpline
-    from solvers.trapezoid import Trapezoid
+    from solvers.classical.numba_rk import NumbaRK
+    from solvers.classical.pod_spline import PodSpline
+    from solvers.classical.trapezoid import Trapezoid
     from systems.cases import CASES
 
     for name, method, parallel, sensitivities in PREPARED_KERNELS:
@@ -63,8 +63,10 @@ def main() -> int:
         return 0
     import numpy as np
 
-    from solvers import numba_kernels, trapezoid_faults, trapezoid_kernels
-    from solvers.numba_points import points_kernel
+    from solvers.classical.kernels import rk as numba_kernels
+    from solvers.classical.kernels import trapezoid as trapezoid_kernels
+    from solvers.classical.kernels import trapezoid_faults
+    from solvers.classical.kernels.rk_points import points_kernel
     from systems.cases import SMIB_INFERENCE
 
     start = time.perf_counter()

@@ -14,10 +14,10 @@ from conftest import check_points_as_solves, per_pair
 from harness import metrics
 from harness.suites.identification import observations
 from solvers import make_solver
-from solvers import numba_kernels as kernels
 from solvers.base import SolveError
-from solvers.classical import keeps_network_sparse
-from solvers.numba_rk import SPARSE_FROM_MACHINES
+from solvers.classical.common import keeps_network_sparse
+from solvers.classical.kernels import rk as kernels
+from solvers.classical.numba_rk import SPARSE_FROM_MACHINES
 from systems.cases import CASES, SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
 from systems.reference import reference
 

@@ -1,4 +1,4 @@
-"""numba kernels of `solvers.numba_rk`: explicit Runge-Kutta on the n-machine swing equation
+"""numba kernels of `solvers.classical.numba_rk`: explicit Runge-Kutta on the n-machine swing equation
 (`systems.model`: lossy Kron-reduced coupling, optional infinite bus), the loop over the batch of
 input powers inside compiled code.
 
@@ -9,7 +9,7 @@ Packed arguments (each array argument costs ~0.1 us of dispatch, so they are few
   (rad), `OMEGA0` (rad/s), `P_M`, `C_INF`, `S_INF` (p.u.), then row k of C and row k of S
   (p.u., from `COUPLING`; `systems.model.coupling`); (n, 7) without C and S for the sparse form;
 - `net`: the network kept sparse, `systems.sparse_network.LUFactors` of the case (P_e from the bus
-  voltages, `solvers.numba_sparse`), or `NO_NETWORK` for the reduced form (C and S in `system`);
+  voltages, `solvers.classical.kernels.sparse`), or `NO_NETWORK` for the reduced form (C and S in `system`);
 - `options` (4,): rtol, atol, dt (s, rk4 only), max_steps.
 The state of one trajectory is y = [delta_1..n, omega_1..n] (2n,); with sensitivities it is
 followed by the columns of S = dy/dp (2n, 2n), p = (m_1..n, d_1..n), column j at
@@ -20,7 +20,7 @@ P_e takes n sin and n cos per evaluation (the expansion of `systems.model`: two 
 trigonometric call per pair of machines); a system whose machines see only their own susceptance
 to the infinite bus (C = S = 0, c_inf = 0: the SMIB) takes one sin per machine instead, and the
 same bits (the expansion's other terms are exact zeros). In the sparse form the network's part of
-P_e is two sparse triangular solves (`solvers.numba_sparse`) instead of the two dense mat-vecs; the
+P_e is two sparse triangular solves (`solvers.classical.kernels.sparse`) instead of the two dense mat-vecs; the
 sensitivities (identification) take the reduced form only.
 """
 
@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit, prange
 from scipy.integrate._ivp import dop853_coefficients as _c853
 
-from solvers.numba_sparse import sparse_power
+from solvers.classical.kernels.sparse import sparse_power
 from systems.cases import Case
 from systems.model import coupling
 

@@ -1,10 +1,10 @@
-"""numba kernel of `solvers.numba_rk`'s points queries: pairs (t_i s, P1_i p.u.) grouped by P1
-(`solvers.classical.PointGroups`), one trajectory per group integrated to that group's last time
+"""numba kernel of `solvers.classical.numba_rk`'s points queries: pairs (t_i s, P1_i p.u.) grouped by P1
+(`solvers.classical.common.PointGroups`), one trajectory per group integrated to that group's last time
 with dense output at each of its times, every group in one compiled call (over numba's threads
 with `parallel`). A group of one pair integrates to its own t_i: the bits of a one-point `solve`;
 a group of many, the bits of a `solve` at that group's times.
 
-The integrators and the packed arguments (`system`, `options`) are `solvers.numba_kernels`'.
+The integrators and the packed arguments (`system`, `options`) are `solvers.classical.kernels.rk`'.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import OK, _jit_variant, _make_trajectory, _mode
+from solvers.classical.kernels.rk import OK, _jit_variant, _make_trajectory, _mode
 
 __all__ = ["points_kernel"]
 

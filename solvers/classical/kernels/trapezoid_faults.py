@@ -1,4 +1,4 @@
-"""numba kernel of `solvers.trapezoid` on a fault case (`systems.cases.Fault`): for each clearing
+"""numba kernel of `solvers.classical.trapezoid` on a fault case (`systems.cases.Fault`): for each clearing
 time t_c, the fault-on network from the equilibrium to t_c, then the post-fault network from the
 state at t_c; t_c is a step boundary.
 
@@ -20,8 +20,8 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import DELTA0, NO_NETWORK, OK, OMEGA0, P_M, UNCOUPLED, _jit_variant, _mode
-from solvers.trapezoid_kernels import _trajectory
+from solvers.classical.kernels.rk import DELTA0, NO_NETWORK, OK, OMEGA0, P_M, UNCOUPLED, _jit_variant, _mode
+from solvers.classical.kernels.trapezoid import _trajectory
 
 __all__ = ["fault_kernel"]
 

@@ -1,8 +1,8 @@
-"""numba kernels of `solvers.trapezoid`: the implicit trapezoidal rule at a fixed step on the
+"""numba kernels of `solvers.classical.trapezoid`: the implicit trapezoidal rule at a fixed step on the
 n-machine swing equation (`systems.model`), Newton's method on the angle increments with a reused
 LU factorisation, every trajectory of a query in one compiled call.
 
-Packed arguments: `system` (n, 7 + 2n), `solvers.numba_kernels.system_array` (its columns M, D,
+Packed arguments: `system` (n, 7 + 2n), `solvers.classical.kernels.rk.system_array` (its columns M, D,
 P_M, ...); `options` (3,): dt (s), newton_tol (rad), max_newton.
 
 The step. With y = [delta, omega], a = (P - d omega - P_e(delta)) / m per machine, the rule
@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from solvers.numba_kernels import (
+from solvers.classical.kernels.rk import (
     C_INF,
     COUPLING,
     NO_NETWORK,

@@ -1,5 +1,5 @@
 """numba-compiled explicit Runge-Kutta (RK4, Dormand-Prince 5(4), DOP853) on the n-machine swing
-equation, the loop over P1 inside compiled code; the kernels are in `solvers.numba_kernels`."""
+equation, the loop over P1 inside compiled code; the kernels are in `solvers.classical.kernels.rk`."""
 
 from __future__ import annotations
 
@@ -10,9 +10,8 @@ from typing import Any, ClassVar, Literal
 import numba
 import numpy as np
 
-from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     SPARSE_FROM_MACHINES,
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -25,8 +24,9 @@ from solvers.classical import (
     keeps_network_sparse,
     search_boxes,
 )
-from solvers.numba_faults import fault_kernel
-from solvers.numba_points import points_kernel
+from solvers.classical.kernels import rk as kernels
+from solvers.classical.kernels.rk_faults import fault_kernel
+from solvers.classical.kernels.rk_points import points_kernel
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
 from systems.sparse_network import LUFactors, lu_factors
@@ -71,7 +71,7 @@ class NumbaRK(AbstractSolver):
     two sparse triangular solves); P1 is generator 1's mechanical power, the other machines run
     at their p_m. A fault case (`Case.fault`, P1 the clearing time t_c s) integrates the fault-on
     phase once for every t_c of a call and each post-fault phase from its own state at t_c
-    (`solvers.numba_faults`), on the reduced networks.
+    (`solvers.classical.kernels.rk_faults`), on the reduced networks.
     """
 
     name: ClassVar[str] = "numba-rk"

@@ -1,5 +1,5 @@
 """The industry's integrator: the implicit trapezoidal rule at a fixed step (PSS/E's half cycle by
-default) with Newton iterations, compiled with numba; the kernels are in `solvers.trapezoid_kernels`."""
+default) with Newton iterations, compiled with numba; the kernels are in `solvers.classical.kernels.trapezoid`."""
 
 from __future__ import annotations
 
@@ -9,10 +9,8 @@ from typing import Any, ClassVar
 import numba
 import numpy as np
 
-from solvers import trapezoid_kernels as kernels
-from solvers import trapezoid_sparse
 from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, FitReport, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     SPARSE_FROM_MACHINES,
     NetworkForm,
     ObservationLayout,
@@ -22,9 +20,11 @@ from solvers.classical import (
     keeps_network_sparse,
     search_boxes,
 )
-from solvers.numba_kernels import NOT_FINITE, D, M, check_threads, system_array
+from solvers.classical.kernels import trapezoid as kernels
+from solvers.classical.kernels import trapezoid_sparse
+from solvers.classical.kernels.rk import NOT_FINITE, D, M, check_threads, system_array
+from solvers.classical.kernels.trapezoid_faults import fault_kernel
 from solvers.options import Bounds, OptionSchema, PositiveFloat, PositiveInt, StrictBool
-from solvers.trapezoid_faults import fault_kernel
 from systems.cases import Observations
 
 __all__ = ["HALF_CYCLE", "STEPS", "TIGHT_STEP", "Trapezoid"]
@@ -59,7 +59,7 @@ class Trapezoid(AbstractSolver):
     (PSS/E, ANDES), compiled with numba, one trajectory per P1 in one compiled call.
 
     Each step solves the n equations of the angle increments (omega eliminated; the derivation is
-    `solvers.trapezoid_kernels`'s docstring) by Newton's method with a reused LU factorisation of
+    `solvers.classical.kernels.trapezoid`'s docstring) by Newton's method with a reused LU factorisation of
     the n x n Jacobian, factorised again only when an update fails to halve; output at the query
     times by cubic Hermite interpolation of each step's end states and derivatives. Second order.
     Options: dt (s, default half a cycle, 1/120 s: ceil(t / dt) equal steps; config "tight":
@@ -72,12 +72,12 @@ class Trapezoid(AbstractSolver):
     `stats` (n_trajectories, 4): each trajectory's `trapezoid_kernels.STATS` in the last call.
     Reduced, the network is the case's Kron-reduced one, dense: a factorisation costs ~n^3 / 3
     multiply-adds, an iteration ~5 n^2 (P_e 4 n^2, the triangular solves n^2), a step one more P_e.
-    Sparse (`solvers.trapezoid_sparse`), P_e comes from the bus voltages (two sparse triangular
+    Sparse (`solvers.classical.kernels.trapezoid_sparse`), P_e comes from the bus voltages (two sparse triangular
     solves with the SuperLU factors of the unreduced network) and the Newton matrix is diagonal
     (each machine's own slope, no factorisation): an iteration costs O(nnz(L + U) + n).
     A fault case (`Case.fault`, P1 the clearing time t_c s), on its reduced networks: the fault-on
     phase to t_c, ending on a step, then the post-fault phase from the state at t_c
-    (`solvers.trapezoid_faults`).
+    (`solvers.classical.kernels.trapezoid_faults`).
     """
 
     name: ClassVar[str] = "trapezoid"

@@ -1,9 +1,9 @@
-"""numba kernels of `solvers.pod_spline`: the tensor-product interpolant of a POD basis's modal
+"""numba kernels of `solvers.classical.pod_spline`: the tensor-product interpolant of a POD basis's modal
 coefficients, evaluated at query points.
 
 The interpolant of one quantity (the angles or the speeds), every array float64:
 - `nodes` (S,) the P1 nodes (p.u.) and `weights` (S,) their barycentric weights: the polynomial
-  interpolant of degree S - 1 in P1 (`solvers.pod_spline.lobatto_nodes`);
+  interpolant of degree S - 1 in P1 (`solvers.classical.pod_spline.lobatto_nodes`);
 - `values`, `slopes` (n_knots, S, k): the k modal coefficients at uniform time knots t_i = i h
   (i = 0 .. n_knots - 1, h s) of each node's trajectory, and their time derivatives (1/s): the
   piecewise cubic Hermite interpolant in t;

@@ -1,4 +1,4 @@
-"""numba kernel of `solvers.numba_rk` on a fault case (`systems.cases.Fault`): the fault-on network
+"""numba kernel of `solvers.classical.numba_rk` on a fault case (`systems.cases.Fault`): the fault-on network
 from the equilibrium to the clearing time t_c, the post-fault network from the state at t_c, no
 step across the switch.
 
@@ -10,7 +10,7 @@ integrated in the time since t_c, from the packed post-fault system with that st
 one (`numba_kernels.DELTA0`, `OMEGA0`). A query at t = t_c answers the state at t_c.
 
 Arguments are `numba_kernels`' (`system_array` of each phase, `net`, `options`), and the groups of
-`solvers.classical.PointGroups`, with the clearing time in place of P1.
+`solvers.classical.common.PointGroups`, with the clearing time in place of P1.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import DELTA0, OK, OMEGA0, P_M, _jit_variant, _make_trajectory, _mode
+from solvers.classical.kernels.rk import DELTA0, OK, OMEGA0, P_M, _jit_variant, _make_trajectory, _mode
 
 __all__ = ["fault_kernel"]
 

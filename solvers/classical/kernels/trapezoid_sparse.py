@@ -1,5 +1,5 @@
-"""The trapezoid's network kept sparse: `solvers.trapezoid_kernels`'s step on the unreduced network
-(`systems.sparse_network`), P_e from two sparse triangular solves (`solvers.numba_sparse`) each
+"""The trapezoid's network kept sparse: `solvers.classical.kernels.trapezoid`'s step on the unreduced network
+(`systems.sparse_network`), P_e from two sparse triangular solves (`solvers.classical.kernels.sparse`) each
 Newton iteration, compiled with numba.
 
 Each step solves the trapezoid kernels' n equations of the angle increments x,
@@ -25,9 +25,9 @@ solution of Y_bb V = sum_j w_j e^{j delta_j} e_at[j]:
 Z_kk = (Y_bb^-1)[at[k], at[k]] (p.u.): the constant second term (`self_coupling`) removes machine
 k's own EMF from V_at[k], on which P_e,k does not depend through the angle.
 
-Packed arguments: `system` (n, 8), `solvers.numba_kernels.system_array(case, sparse=True)`'s
+Packed arguments: `system` (n, 8), `solvers.classical.kernels.rk.system_array(case, sparse=True)`'s
 columns and, at `SELF`, Im(conj(w_k)^2 conj(Z_kk)) (p.u.; `prepare`); `net` the case's
-`systems.sparse_network.LUFactors`; `options` and the statistics as `solvers.trapezoid_kernels`'s
+`systems.sparse_network.LUFactors`; `options` and the statistics as `solvers.classical.kernels.trapezoid`'s
 (the factorisations column counts none: the diagonal needs none).
 """
 
@@ -40,7 +40,7 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit, prange
 
-from solvers.numba_kernels import (
+from solvers.classical.kernels.rk import (
     C_INF,
     NOT_FINITE,
     OK,
@@ -53,8 +53,8 @@ from solvers.numba_kernels import (
     _start,
     system_array,
 )
-from solvers.numba_sparse import sparse_power
-from solvers.trapezoid_kernels import NEWTON_FAILED, SINGULAR, _output
+from solvers.classical.kernels.sparse import sparse_power
+from solvers.classical.kernels.trapezoid import NEWTON_FAILED, SINGULAR, _output
 from systems.cases import Case
 from systems.sparse_network import LUFactors, lu_factors
 

@@ -1,5 +1,5 @@
 """The classical reduced-order surrogate: a POD basis of numba-rk trajectories, its modal
-coefficients interpolated in P1 and t, queried by numba (`solvers.pod_kernels`)."""
+coefficients interpolated in P1 and t, queried by numba (`solvers.classical.kernels.pod`)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from solvers import pod_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport
-from solvers.numba_rk import NumbaRK
+from solvers.classical.kernels import pod as kernels
+from solvers.classical.numba_rk import NumbaRK
+from solvers.classical.snapshots import chebyshev_nodes, pod_modes
 from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, int_at_least
-from solvers.snapshots import chebyshev_nodes, pod_modes
 from systems.cases import STEP_SCENARIO, Observations, Scenario
 from systems.model import accelerations, coupling
 
@@ -47,7 +47,7 @@ class PodSplineOptions(OptionSchema):
 
 
 class Interpolant(NamedTuple):
-    """One quantity's interpolant, the arguments of `solvers.pod_kernels.grid` after h, nodes and
+    """One quantity's interpolant, the arguments of `solvers.classical.kernels.pod.grid` after h, nodes and
     weights: values, slopes (n_times, n_snapshots, k), basis_t (k, n), mean (n,)."""
 
     values: np.ndarray
@@ -82,7 +82,7 @@ class PodSpline(AbstractSolver):
     out). The modal coefficients are interpolated by the polynomial of degree n_snapshots - 1
     through the nodes in P1 (barycentric) and by cubic Hermite pieces between the knots in t,
     with the exact derivatives: the speeds' projections for the angles', the swing equation's
-    accelerations for the speeds'. A query is `solvers.pod_kernels`' compiled evaluation.
+    accelerations for the speeds'. A query is `solvers.classical.kernels.pod`' compiled evaluation.
     Queries outside [0, t_final] x [p1_min, p1_max] are refused unless `extrapolate=True`.
     Deterministic: `seed` is accepted (every adapter that trains has one) and changes nothing.
     It does not identify m and d (its model holds the case's), nor integrate fault cases.

@@ -1,5 +1,5 @@
 """The network part of P_e from the unreduced network, compiled: the right-hand side of
-`solvers.numba_kernels` in its sparse mode (`systems.sparse_network`).
+`solvers.classical.kernels.rk` in its sparse mode (`systems.sparse_network`).
 
 With the factors P_r Y_bb P_c = L U of `systems.sparse_network.LUFactors` (`net`), the bus voltages
 of angles delta are two triangular solves of the machines' injections, and
