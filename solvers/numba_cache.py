@@ -63,24 +63,23 @@ def main() -> int:
         return 0
     import numpy as np
 
-    from solvers.classical.kernels import rk as numba_kernels
+    from solvers.classical.kernels import layout, rk, trapezoid_faults
     from solvers.classical.kernels import trapezoid as trapezoid_kernels
-    from solvers.classical.kernels import trapezoid_faults
     from solvers.classical.kernels.rk_points import points_kernel
     from systems.cases import SMIB_INFERENCE
 
     start = time.perf_counter()
     # the SMIB's kernels (n = 1): serial, with and without sensitivities, and the parallel
     # forward ones (numba-rk's variant parallel=True); its points kernels, serial and parallel
-    system = numba_kernels.system_array(SMIB_INFERENCE)
+    system = layout.system_array(SMIB_INFERENCE)
     options = np.array([1e-3, 1e-6, 0.1, 1000.0])
-    for method in numba_kernels.METHODS.values():
+    for method in rk.METHODS.values():
         for sens, parallel in ((False, False), (True, False), (False, True)):
-            kernel = numba_kernels.kernel(method, sens, parallel, 1)
-            kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, numba_kernels.NO_NETWORK, options)
+            kernel = rk.kernel(method, sens, parallel, 1)
+            kernel(np.array([0.0, 1.0]), np.full(2, 0.1), system, layout.NO_NETWORK, options)
         for parallel in (False, True):  # numba-rk's solve_points: two pairs of one P1
             points_kernel(method, parallel, 1)(np.array([0.0, 1.0]), np.array([0, 1]), np.array([0, 2]),
-                                               np.array([0.1]), system, numba_kernels.NO_NETWORK, options)
+                                               np.array([0.1]), system, layout.NO_NETWORK, options)
     for parallel in (False, True):  # trapezoid's kernel, one for solve and solve_points: two P1, two times
         trapezoid_kernels.run_kernel(parallel)(np.array([0.0, 0.1]), np.array([0, 1, 0, 1]), np.array([0, 2, 4]),
                                                np.full(2, 0.1), system, np.array([0.05, 1e-10, 20.0]), False)

@@ -13,7 +13,7 @@ from solvers.base import SolveError
 from solvers.classical import trapezoid
 from solvers.classical.kernels import trapezoid as trapezoid_kernels
 from solvers.classical.kernels import trapezoid_sparse
-from solvers.classical.kernels.rk import system_array
+from solvers.classical.kernels.layout import system_array
 from systems.cases import CASES, SMIB_INFERENCE, standard_grid
 
 pytest.importorskip("numba")

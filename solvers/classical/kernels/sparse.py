@@ -11,12 +11,12 @@ O(nnz(L + U)) a call instead of the reduced coupling's O(n^2).
 
 from __future__ import annotations
 
-from numba import njit
+from solvers.classical.kernels.jit import jit_function
 
 __all__ = ["sparse_power"]
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def sparse_power(scratch, net, n, work):
     """scratch (3n,): cos delta_k at [k], sin delta_k at [n + k] (read); P_e,k of the network
     (p.u., no infinite bus) written at [2n + k]. net: `LUFactors`; work (nb,) complex128 scratch."""
