@@ -4,7 +4,7 @@ function that validates an adapter's merged options against its schema.
 An adapter sets `SCHEMA` to an `OptionSchema` subclass (one field per option, its default the
 option's default); `AbstractSolver` derives `OPTIONS` (name -> default) from it and validates the
 merged options with `validate_options` at construction. Rules that depend on the case or the
-machine (a step no longer than the case's horizon, `solvers.classical.check_step`; a device that
+machine (a step no longer than the case's horizon, `solvers.classical.common.check_step`; a device that
 exists) stay in the adapter's `_check_options` hook, which construction runs too: building an
 adapter for its case is the one validation, for the harness and the Python API alike.
 

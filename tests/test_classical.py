@@ -89,7 +89,7 @@ def test_casadi_s_other_graph_and_method_match_the_reference(options):
 
 
 def test_casadi_graph_auto_picks_by_the_number_of_machines():
-    from solvers.casadi_cvodes import MX_FROM_MACHINES
+    from solvers.classical.casadi_cvodes import MX_FROM_MACHINES
 
     assert make_solver("casadi-cvodes", THREE).graph == "sx" and THREE.n < MX_FROM_MACHINES
     assert make_solver("casadi-cvodes", THREE, graph="mx").graph == "mx"

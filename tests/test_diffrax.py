@@ -182,8 +182,8 @@ def test_jacobian_equals_finite_differences(three_obs):
     identification above, so the same compiled code)."""
     import jax
 
-    from solvers.classical import ObservationLayout
-    from solvers.diffrax_ode import Structure, _compiled, _pad, bucket
+    from solvers.classical.common import ObservationLayout
+    from solvers.classical.diffrax_ode import Structure, _compiled, _pad, bucket
 
     require("diffrax")
     solver = make_solver("diffrax", THREE, "tight")

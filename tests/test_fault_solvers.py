@@ -147,7 +147,7 @@ def test_a_failed_integration_names_the_clearing_time(case, name, options):
 def test_stacked_post_fault_calls_are_chunked_and_give_the_unchunked_states(case, monkeypatch):
     """`switched_states` stacks the post-fault phases of many clearing times in chunks whose output
     is bounded (STACKED_CELLS): the same states as one call per t_c, and no call larger than allowed."""
-    from solvers import fault_phases
+    from solvers.classical import fault_phases
 
     calls = []
 

@@ -14,10 +14,11 @@ from conftest import check_points_as_solves, per_pair
 from harness import metrics
 from harness.suites.identification import observations
 from solvers import make_solver
-from solvers import numba_kernels as kernels
 from solvers.base import SolveError
-from solvers.classical import keeps_network_sparse
-from solvers.numba_rk import SPARSE_FROM_MACHINES
+from solvers.classical.common import keeps_network_sparse
+from solvers.classical.kernels import layout
+from solvers.classical.kernels import rk as kernels
+from solvers.classical.numba_rk import SPARSE_FROM_MACHINES
 from systems.cases import CASES, SMIB_IDENTIFICATION, SMIB_INFERENCE, Case, Observations, standard_grid
 from systems.reference import reference
 
@@ -114,7 +115,7 @@ def test_the_network_kept_sparse_gives_the_reduced_trajectories(name):
     case = CASES[name]
     t, P1 = np.linspace(0.0, case.t_final, 21), np.array([case.p1_min, case.p1_max])
     reduced, sparse = (_fitted("rk4", case=case, network=form) for form in ("reduced", "sparse"))
-    assert reduced._net is kernels.NO_NETWORK and sparse._system.shape == (case.n, kernels.COUPLING)
+    assert reduced._net is layout.NO_NETWORK and sparse._system.shape == (case.n, layout.COUPLING)
     assert reduced.fit().message == "network: reduced" and sparse.fit().message.startswith("network: sparse")
     for query in ("solve", "solve_points"):
         args = (t, P1) if query == "solve" else (t[::2], np.resize(P1, t[::2].size))
@@ -152,8 +153,8 @@ def test_sensitivities_equal_finite_differences(method, case):
 
     def states(params):
         system = solver._system.copy()
-        system[:, kernels.M], system[:, kernels.D] = params[:n], params[n:]
-        out, failed, _ = solver._sensitivities(t, P1, system, kernels.NO_NETWORK, solver._options)
+        system[:, layout.M], system[:, layout.D] = params[:n], params[n:]
+        out, failed, _ = solver._sensitivities(t, P1, system, layout.NO_NETWORK, solver._options)
         assert failed == -1
         # blocks: delta, omega, then d delta / d p_j, d omega / d p_j for each j -> p_j last
         return out[0], out[1], np.moveaxis(out[2::2], 0, -1), np.moveaxis(out[3::2], 0, -1)

@@ -17,7 +17,7 @@ from hypothesis.extra.numpy import arrays
 
 from solvers import INTERFACE, SOLVERS, make_solver
 from solvers.base import DEFAULT_CONFIG, AbstractSolver
-from solvers.classical import ToleranceOptions
+from solvers.classical.common import ToleranceOptions
 from solvers.options import OptionSchema, PositiveFloat, describe_option, validate_options
 from solvers.pinn.config import PinnConfig
 from systems.cases import CASES, FAULT_SCENARIO, SMIB_INFERENCE, check_array

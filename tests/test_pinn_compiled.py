@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pinn_helpers import TWO  # two machines, lossy, no infinite bus
 
 from solvers import make_solver
 from solvers.pinn.architecture import Architecture, init_theta
 from solvers.pinn.config import PinnConfig
 from solvers.pinn.evaluator import MarchingEvaluator
-from systems.cases import SMIB_INFERENCE, Case
+from systems.cases import SMIB_INFERENCE
 
 pytest.importorskip("numba")
 from solvers.pinn.compiled import NumbaEvaluator, compiled_model
@@ -20,13 +21,6 @@ from solvers.pinn.compiled import NumbaEvaluator, compiled_model
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
 
 CASE = SMIB_INFERENCE
-# two machines, lossy, no infinite bus (as tests/test_pinn.py's TWO)
-TWO = Case(
-    name="two-machines", m=(0.1, 0.2), d=(0.05, 0.1), delta0=(0.1, -0.05), omega0=(0.05, -0.02),
-    p_m=(0.3, -0.25), E=(1.05, 1.0), G=((0.1, -0.05), (-0.05, 0.12)), B=((-3.0, 1.5), (1.5, -2.8)),
-    g_inf=(0.0, 0.0), b_inf=(0.0, 0.0), t_final=4.0, p1_min=0.25, p1_max=0.35,
-    m_box=((0.01, 1.0), (0.02, 2.0)), d_box=((0.005, 0.5), (0.01, 1.0)),
-)
 T_GRID = np.linspace(0.0, CASE.t_final, 201)
 P_GRID = np.linspace(CASE.p1_min, CASE.p1_max, 100)
 POINTS = [(np.array([10.0]), np.array([0.13])), (np.array([0.0]), np.array([CASE.p1_min])),

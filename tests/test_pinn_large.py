@@ -8,13 +8,13 @@ import dataclasses
 
 import numpy as np
 import pytest
+from pinn_helpers import BACKENDS, TWO, TWO_SMALL, need_backend
 
 from solvers import make_solver
 from solvers.base import LARGE_SYSTEMS
 from solvers.pinn.architecture import Architecture, init_theta
 from solvers.pinn.config import CONFIGS, PinnConfig
 from solvers.pinn.problems import Problem, residual_weights, window_edges, window_problem
-from tests.test_pinn import BACKENDS, TWO, TWO_SMALL, _need
 
 pytestmark = pytest.mark.filterwarnings("ignore:`torch.jit.script` is deprecated:DeprecationWarning")
 
@@ -50,7 +50,7 @@ def test_torch_trains_on_the_residuals_in_acceleration_units():
     """The same network's residuals: in acceleration units, machine k's column is its power
     residual / m_k, and so are the Jacobian's rows (torch's Taylor-mode path; JAX's shares
     `network.residual_vector`, checked below)."""
-    _need("torch-pinn")
+    need_backend("torch-pinn")
     solver = make_solver("torch-pinn", TWO, **OPTIONS)
     solver._prepare_backend()
     (arch, a_problem, theta), (_, p_problem, _) = _window(CONFIG), _window(dataclasses.replace(
@@ -68,7 +68,7 @@ def test_jax_jacobian_products_and_diagonal_equal_the_jacobians():
     """The matrix-free trainer's J v, J^T u and diag(J^T J) (in batches of points) against the
     explicit Jacobian, on a window problem with start states and data points, in acceleration
     units (the residuals: the power residuals / m_k)."""
-    _need("jax-pinn")
+    need_backend("jax-pinn")
     solver = make_solver("jax-pinn", TWO, **OPTIONS)
     solver._prepare_backend()
     arch, problem, theta = _window(CONFIG)
@@ -88,7 +88,7 @@ def test_jax_jacobian_products_and_diagonal_equal_the_jacobians():
 
 
 def test_the_matrix_free_optimiser_trains_through_the_adapter_and_torch_refuses_it():
-    _need("jax-pinn")
+    need_backend("jax-pinn")
     solver = make_solver("jax-pinn", TWO, **OPTIONS, optimizer="gn-cg", cg_iterations=5, warm_start=True)
     report = solver.fit()
     assert report.iterations == 4 * 3 and np.isfinite(report.loss)

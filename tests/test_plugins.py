@@ -139,7 +139,7 @@ def test_a_plugin_cannot_take_a_built_in_name(site, tmp_path):
     probe = "from solvers import SOLVERS; print(SOLVERS['scipy-rk45'].__module__)"
     out = python(["-c", probe], [site, other], tmp_path)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "solvers.scipy_rk45"
+    assert out.stdout.strip() == "solvers.classical.scipy_rk45"
     assert "solver 'scipy-rk45' of clashing ignored" in out.stderr
 
 

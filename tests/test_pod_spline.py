@@ -1,4 +1,4 @@
-"""pod-spline, the reduced-order surrogate (`solvers.pod_spline`): accurate against the reference
+"""pod-spline, the reduced-order surrogate (`solvers.classical.pod_spline`): accurate against the reference
 away from its nodes and knots, exact at them, deterministic, and every bad input refused in one
 line naming it. (The contract tests run it with every other adapter.)"""
 
@@ -12,8 +12,8 @@ from conftest import per_group, per_pair, points_queries
 
 from harness import metrics
 from solvers import make_solver
-from solvers.numba_rk import NumbaRK
-from solvers.pod_spline import ATOL_PER_RTOL
+from solvers.classical.numba_rk import NumbaRK
+from solvers.classical.pod_spline import ATOL_PER_RTOL
 from systems.cases import CASES, SMIB_INFERENCE, standard_grid
 from systems.model import relative_angles
 from systems.reference import reference

@@ -1,4 +1,4 @@
-"""The reduced-output PINN (`reduced-pinn`) and its bases (`solvers.snapshots`, `linear_basis`)."""
+"""The reduced-output PINN (`reduced-pinn`) and its bases (`solvers.classical.snapshots`, `linear_basis`)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from conftest import require
 
 from solvers import make_solver
-from solvers.snapshots import chebyshev_nodes, pod_basis
+from solvers.classical.snapshots import chebyshev_nodes, pod_basis
 from systems.cases import CASES, SMIB_INFERENCE
 from systems.model import relative_angles
 from systems.reference import reference

@@ -1,5 +1,5 @@
 """The network kept sparse (`systems.sparse_network`): the same P_e as the Kron-reduced form, in
-numpy and in the compiled solves of `solvers.numba_sparse`; how a `Case` carries it."""
+numpy and in the compiled solves of `solvers.classical.kernels.sparse`; how a `Case` carries it."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def test_power_of_the_sparse_network_is_the_reduced_forms(name):
 @pytest.mark.parametrize("name", ["wscc9", "case1354pegase"])
 def test_compiled_solves_of_the_factors_give_the_same_power(name):
     pytest.importorskip("numba")
-    from solvers.numba_sparse import sparse_power
+    from solvers.classical.kernels.sparse import sparse_power
 
     case = CASES[name]
     factors = lu_factors(case.network, case.E)

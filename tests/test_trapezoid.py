@@ -14,7 +14,7 @@ from harness import metrics
 from harness.runs import DEFAULT
 from solvers import make_solver
 from solvers.base import SolveError
-from solvers.trapezoid import HALF_CYCLE, STEPS
+from solvers.classical.trapezoid import HALF_CYCLE, STEPS
 from systems.cases import CASES, SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
 from systems.model import relative_angles
 from systems.reference import reference

@@ -1,4 +1,4 @@
-"""trapezoid with the network kept sparse (`solvers.trapezoid_sparse`): the reduced form's
+"""trapezoid with the network kept sparse (`solvers.classical.kernels.trapezoid_sparse`): the reduced form's
 trajectories to Newton's tolerance, P_e and each machine's own slope against the dense network's,
 points and the parallel kernel against solves, Newton's failure, and the option `network`."""
 
@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 from conftest import check_points_as_solves
 
-from solvers import make_solver, trapezoid, trapezoid_kernels, trapezoid_sparse
+from solvers import make_solver
 from solvers.base import SolveError
-from solvers.numba_kernels import system_array
+from solvers.classical import trapezoid
+from solvers.classical.kernels import trapezoid as trapezoid_kernels
+from solvers.classical.kernels import trapezoid_sparse
+from solvers.classical.kernels.layout import system_array
 from systems.cases import CASES, SMIB_INFERENCE, standard_grid
 
 pytest.importorskip("numba")

@@ -33,7 +33,7 @@ PLUGIN = '''
 from typing import ClassVar
 
 from solvers.base import AbstractSolver, FitReport
-from solvers.classical import ToleranceOptions
+from solvers.classical.common import ToleranceOptions
 from solvers.options import NonNegativeInt, OptionSchema
 from systems.reference import reference
 

@@ -20,6 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport
+from solvers.classical.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.identification import Estimate
 from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
 from solvers.pinn.optim import levenberg_marquardt
@@ -31,7 +32,6 @@ from solvers.pinn.reduced import (
     walk_starts,
     window_functions,
 )
-from solvers.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.threads import configure_threads
 from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
 from systems.model import coupling

@@ -1,4 +1,4 @@
-"""The traced solve of `solvers.diffrax_ode` on a fault case (`systems.cases.Fault`): the fault-on
+"""The traced solve of `solvers.classical.diffrax_ode` on a fault case (`systems.cases.Fault`): the fault-on
 network from the equilibrium to each clearing time t_c, the post-fault network from the state at
 t_c, no step across the switch, all clearing times of a query in one compiled call.
 

@@ -8,7 +8,7 @@ import numpy as np
 from scipy.integrate import odeint
 
 from solvers.base import AbstractSolver, Estimate, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     PointsByP1,
@@ -19,7 +19,7 @@ from solvers.classical import (
     rhs_args,
     run_batch,
 )
-from solvers.fault_phases import switched_states
+from solvers.classical.fault_phases import switched_states
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations
 
@@ -44,7 +44,7 @@ class ScipyOdeint(StackedStates, PointsByP1, AbstractSolver):
     Options: rtol, atol (defaults 1e-3, 1e-6, ode45's); m_bounds, d_bounds (p.u.), the search box
     of `identify`. A fault case (P1 the clearing time t_c s): the fault-on phase once for every
     t_c of a query (LSODA's output at the times before the largest t_c and at every t_c), then
-    every post-fault phase in one stacked system from its state at t_c (`solvers.fault_phases`)."""
+    every post-fault phase in one stacked system from its state at t_c (`solvers.classical.fault_phases`)."""
 
     name: ClassVar[str] = "scipy-odeint"
     SCHEMA = ToleranceOptions

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
@@ -25,7 +25,7 @@ from solvers.classical import (
     points_by_p1,
     search_boxes,
 )
-from solvers.diffrax_faults import switched
+from solvers.classical.diffrax_faults import switched
 from solvers.options import PositiveFloat, PositiveInt
 from solvers.threads import configure_threads
 from systems.cases import Case, Observations
@@ -235,7 +235,7 @@ class DiffraxODE(AbstractSolver):
     once per padded observation layout.
     A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query,
     then each post-fault phase from its state at t_c with its own steps, in one compiled call
-    whatever `batch` (`solvers.diffrax_faults`); solve_points one call per distinct t_c.
+    whatever `batch` (`solvers.classical.diffrax_faults`); solve_points one call per distinct t_c.
     """
 
     name: ClassVar[str] = "diffrax"

@@ -1,5 +1,6 @@
 """numba-compiled explicit Runge-Kutta (RK4, Dormand-Prince 5(4), DOP853) on the n-machine swing
-equation, the loop over P1 inside compiled code; the kernels are in `solvers.numba_kernels`."""
+equation, the loop over P1 inside compiled code; the kernels are in `solvers.classical.kernels.rk`
+(the packed system in `solvers.classical.kernels.layout`)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,8 @@ from typing import Any, ClassVar, Literal
 import numba
 import numpy as np
 
-from solvers import numba_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     SPARSE_FROM_MACHINES,
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
@@ -25,22 +25,27 @@ from solvers.classical import (
     keeps_network_sparse,
     search_boxes,
 )
-from solvers.numba_faults import fault_kernel
-from solvers.numba_points import points_kernel
+from solvers.classical.kernels import rk
+from solvers.classical.kernels.layout import (
+    NO_NETWORK,
+    STATUS,
+    TOO_MANY_STEPS,
+    D,
+    M,
+    check_threads,
+    system_array,
+)
+from solvers.classical.kernels.rk_faults import fault_kernel
+from solvers.classical.kernels.rk_points import points_kernel
 from solvers.options import PositiveFloat, PositiveInt, StrictBool
 from systems.cases import Observations
 from systems.sparse_network import LUFactors, lu_factors
 
-_FAILURES = {
-    kernels.TOO_MANY_STEPS: "more than max_steps steps",
-    kernels.STEP_TOO_SMALL: "step size fell below 10 ulp of t",
-    kernels.NOT_FINITE: "the state became NaN or inf",
-}
 COARSE_TOLERANCES = (1e-6, 1e-9)  # rtol, atol of the start grid of identify
 RK4_STEPS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)  # s, the work-precision sweep of rk4
 
 
-Method = Literal[tuple(kernels.METHODS)]  # one of the keys of `numba_kernels.METHODS`
+Method = Literal[tuple(rk.METHODS)]  # one of the keys of `rk.METHODS`
 
 
 class NumbaRKOptions(ToleranceOptions):
@@ -71,7 +76,7 @@ class NumbaRK(AbstractSolver):
     two sparse triangular solves); P1 is generator 1's mechanical power, the other machines run
     at their p_m. A fault case (`Case.fault`, P1 the clearing time t_c s) integrates the fault-on
     phase once for every t_c of a call and each post-fault phase from its own state at t_c
-    (`solvers.numba_faults`), on the reduced networks.
+    (`solvers.classical.kernels.rk_faults`), on the reduced networks.
     """
 
     name: ClassVar[str] = "numba-rk"
@@ -99,7 +104,7 @@ class NumbaRK(AbstractSolver):
         options = self.options
         check_step(self.name, options["dt"], self.case)
         keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
-        kernels.check_threads(self.name, options["threads"])
+        check_threads(self.name, options["threads"])
 
     def _prepare(self, sensitivities: bool = False) -> None:
         """Packed system and options, and the compiled kernels (numba compiles, or loads from its
@@ -108,26 +113,26 @@ class NumbaRK(AbstractSolver):
         coupling), minutes at 1445 machines even on the tiny warm-up; it takes the reduced network
         (`_reduced`) whatever the option."""
         options, n = self.options, self.case.n
-        method = kernels.METHODS[options["method"]]
+        method = rk.METHODS[options["method"]]
         if self.case.fault is not None:
             self._prepare_fault(method)
             return
         if not hasattr(self, "_system"):
             sparse = keeps_network_sparse(self.name, options["network"], self.case, SPARSE_FROM_MACHINES)
-            self._system = kernels.system_array(self.case, sparse)
-            self._net = lu_factors(self.case.network, self.case.E) if sparse else kernels.NO_NETWORK
+            self._system = system_array(self.case, sparse)
+            self._net = lu_factors(self.case.network, self.case.E) if sparse else NO_NETWORK
             self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]],
                                      np.float64)
-            self._serial = kernels.kernel(method, False, False, n)
-            self._batch = kernels.kernel(method, False, options["parallel"], n)
+            self._serial = rk.kernel(method, False, False, n)
+            self._batch = rk.kernel(method, False, options["parallel"], n)
             self._points = points_kernel(method, options["parallel"], n)
             for run in (self._serial, self._batch):
                 self._warm(run, self._system, self._net)
             self._solve_points(np.array([0.1, 0.0, 0.1]), np.array([self.case.p1_min, self.case.p1_min, 0.0]))
         if sensitivities and not hasattr(self, "_sensitivities"):
-            self._reduced = self._system if self._net is kernels.NO_NETWORK else kernels.system_array(self.case)
-            self._sensitivities = kernels.kernel(method, True, options["parallel"], n)
-            self._warm(self._sensitivities, self._reduced, kernels.NO_NETWORK)
+            self._reduced = self._system if self._net is NO_NETWORK else system_array(self.case)
+            self._sensitivities = rk.kernel(method, True, options["parallel"], n)
+            self._warm(self._sensitivities, self._reduced, NO_NETWORK)
 
     def _prepare_fault(self, method: int) -> None:
         """A fault case's packed systems (each phase's), options and compiled kernel (warmed on a
@@ -135,8 +140,8 @@ class NumbaRK(AbstractSolver):
         if hasattr(self, "_system"):
             return
         case, options = self.case, self.options
-        self._system, self._post = kernels.system_array(case.phase("on")), kernels.system_array(case.phase("post"))
-        self._net = kernels.NO_NETWORK
+        self._system, self._post = system_array(case.phase("on")), system_array(case.phase("post"))
+        self._net = NO_NETWORK
         self._options = np.array([options["rtol"], options["atol"], options["dt"], options["max_steps"]], np.float64)
         self._fault = fault_kernel(method, options["parallel"], case.n)
         t, t_c = np.array([0.0, 0.1, 0.05]), np.array([0.05, 0.02, 0.0])
@@ -150,13 +155,13 @@ class NumbaRK(AbstractSolver):
         """Compile (`_prepare`); the report says which form of a network the kernels integrate."""
         self._prepare()
         net = self._net
-        if net is kernels.NO_NETWORK:
+        if net is NO_NETWORK:
             return FitReport(seconds=0.0, message="" if self.case.network is None else "network: reduced")
         return FitReport(seconds=0.0, message=f"network: sparse ({net.l_inv.size} buses, nnz(L + U) {net.nnz})")
 
     def _run(self, run, t: np.ndarray, P1: np.ndarray, system: np.ndarray, net: LUFactors,
              options: np.ndarray) -> np.ndarray:
-        """States (n_blocks, len(P1), len(t), n) from the kernel `run` (`numba_kernels.kernel`:
+        """States (n_blocks, len(P1), len(t), n) from the kernel `run` (`rk.kernel`:
         [0] delta, [1] omega, then the sensitivities), or SolveError naming P1."""
         if run is not self._serial:
             numba.set_num_threads(self.options["threads"])
@@ -167,12 +172,12 @@ class NumbaRK(AbstractSolver):
 
     def _failed(self, p1: float, status: int) -> None:
         """Raise the SolveError of a trajectory of scenario parameter `p1` (P1 p.u. or t_c s)."""
-        raise SolveError(f"{self.name}: integration failed at {self.case.scenario.symbol}={p1:g}: {_FAILURES[status]}")
+        raise SolveError(f"{self.name}: integration failed at {self.case.scenario.symbol}={p1:g}: {STATUS[status]}")
 
     def _switched(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, T_c: np.ndarray,
                   shared: bool) -> np.ndarray:
         """States (2, len(T_c) or 1 with `shared`, len(t), n) of a fault case from the kernel of
-        `numba_faults.fault_kernel` (its groups), or SolveError naming t_c."""
+        `rk_faults.fault_kernel` (its groups), or SolveError naming t_c."""
         if self.options["parallel"]:
             numba.set_num_threads(self.options["threads"])
         states, failed, status = self._fault(t, order, starts, T_c, self._system, self._post, self._net,
@@ -205,13 +210,13 @@ class NumbaRK(AbstractSolver):
             options = self._options.copy()
             options[3] = max_steps
             _, failed, status = self._serial(t, P1, self._system, self._net, options)
-            if failed >= 0 and status != kernels.TOO_MANY_STEPS:
+            if failed >= 0 and status != TOO_MANY_STEPS:
                 self._failed(p1, status)
             return failed < 0
 
         limit = int(self.options["max_steps"])
         if not succeeds(limit):
-            self._failed(p1, kernels.TOO_MANY_STEPS)
+            self._failed(p1, TOO_MANY_STEPS)
         low, high = 0, 1  # low fails (no step at all reaches t_final > 0), high is tried next
         while high < limit and not succeeds(high):
             low, high = high, min(2 * high, limit)
@@ -222,7 +227,7 @@ class NumbaRK(AbstractSolver):
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (n_s, n) rad and rad/s, at the pairs (t[i] s, P1[i] p.u.): one
-        compiled call (`numba_points.points_kernel`), one trajectory per distinct P1 integrated to
+        compiled call (`rk_points.points_kernel`), one trajectory per distinct P1 integrated to
         the last time of its pairs (a P1 of one pair: to that pair's t, as a one-point `solve`)."""
         groups = PointGroups.of(t, P1)
         if self.case.fault is not None:
@@ -250,7 +255,7 @@ class NumbaRK(AbstractSolver):
 
         def with_params(system: np.ndarray, m: np.ndarray, d: np.ndarray) -> np.ndarray:
             system = system.copy()
-            system[:, kernels.M], system[:, kernels.D] = m, d
+            system[:, M], system[:, D] = m, d
             return system
 
         def rank_starts(m: np.ndarray, d: np.ndarray, with_jacobian: bool):
@@ -262,7 +267,7 @@ class NumbaRK(AbstractSolver):
             if last.get("md") != key:
                 last["md"] = key
                 last["states"] = self._run(self._sensitivities, layout.t, layout.P1,
-                                           with_params(self._reduced, m, d), kernels.NO_NETWORK, self._options)
+                                           with_params(self._reduced, m, d), NO_NETWORK, self._options)
             states = last["states"]
             if not with_jacobian:
                 return states[0], states[1], None, None

@@ -1,9 +1,9 @@
-"""numba kernels of `solvers.trapezoid`: the implicit trapezoidal rule at a fixed step on the
-n-machine swing equation (`systems.model`), Newton's method on the angle increments with a reused
-LU factorisation, every trajectory of a query in one compiled call.
+"""numba kernels of `solvers.classical.trapezoid`: the implicit trapezoidal rule at a fixed step on
+the n-machine swing equation (`systems.model`), Newton's method on the angle increments with a
+reused LU factorisation, every trajectory of a query in one compiled call.
 
-Packed arguments: `system` (n, 7 + 2n), `solvers.numba_kernels.system_array` (its columns M, D,
-P_M, ...); `options` (3,): dt (s), newton_tol (rad), max_newton.
+Packed arguments: `system` (n, 7 + 2n), `solvers.classical.kernels.layout.system_array` (its
+columns M, D, P_M, ...); `options` (3,): dt (s), newton_tol (rad), max_newton.
 
 The step. With y = [delta, omega], a = (P - d omega - P_e(delta)) / m per machine, the rule
 y1 = y0 + h/2 (f(y0) + f(y1)) reads, in the angle increment x = delta1 - delta0 (n,),
@@ -35,39 +35,39 @@ import functools
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from solvers.numba_kernels import (
+from solvers.classical.kernels.jit import jit_function, jit_variant
+from solvers.classical.kernels.layout import (
     C_INF,
     COUPLING,
+    NEWTON_FAILED,
     NO_NETWORK,
     NOT_FINITE,
     OK,
     P_M,
     S_INF,
+    SINGULAR,
     UNCOUPLED,
     D,
     M,
-    _jit_variant,
-    _mode,
-    _name_for_cache,
-    _start,
+    rhs_mode,
+    start_trajectory,
 )
 
-__all__ = ["CONTRACTION", "NEWTON_FAILED", "SINGULAR", "STATS", "network", "run_kernel"]
+__all__ = ["CONTRACTION", "STATS", "hermite_output", "network", "run_kernel", "trajectory"]
 
-NEWTON_FAILED, SINGULAR = 4, 5  # status codes beside numba_kernels' OK and NOT_FINITE
 CONTRACTION = 0.5  # an update larger than this fraction of the previous one refactorises J
 # Columns of the per-trajectory statistics the kernel returns: steps, Newton iterations, LU
 # factorisations, and the time (s) of the step that failed (NaN when none did).
 STATS = ("steps", "iterations", "factorisations", "t_failed")
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def network(delta, pe, jac, with_jac, system, n, coupled, scratch):
     """pe (n,) = P_e(delta) (p.u.) of every machine for angles delta (n,) rad (`systems.model`'s
     expansion: n sin and n cos, two products with C and S); with `with_jac`, jac (n, n) =
-    dP_e/d delta (p.u./rad). `coupled`: `numba_kernels._mode` is not UNCOUPLED (False: P_e,k =
+    dP_e/d delta (p.u./rad). `coupled`: `layout.rhs_mode` is not UNCOUPLED (False: P_e,k =
     s_inf_k sin(delta_k), diagonal jac). scratch (2n,): cos and sin of each angle."""
     if not coupled:
         for k in range(n):
@@ -104,7 +104,7 @@ def network(delta, pe, jac, with_jac, system, n, coupled, scratch):
             jac[k, k] = diagonal
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _lu_factor(A, piv, n):
     """A (n, n) <- its LU factors in place (unit lower L below the diagonal, U on and above),
     rows exchanged by partial pivoting (piv[k]: the row swapped with row k at column k);
@@ -130,7 +130,7 @@ def _lu_factor(A, piv, n):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _lu_solve(LU, piv, b, n):
     """b (n,) <- J^-1 b from `_lu_factor`'s factors of J."""
     for k in range(n):
@@ -149,8 +149,8 @@ def _lu_solve(LU, piv, b, n):
         b[i] = acc / LU[i, i]
 
 
-@njit(cache=True, error_model="numpy")
-def _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col):
+@jit_function
+def hermite_output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col):
     """The states of one step [t0, t1] (s, length h) at the query times ts[order[i_out:]] up to t1,
     by cubic Hermite interpolation (delta with derivatives omega, omega with derivatives a, each
     (n,) at both ends) into out[:, col, order[i]]; returns the index of the next time left."""
@@ -167,12 +167,8 @@ def _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1,
     return i_out
 
 
-for _name in ("network", "_lu_factor", "_lu_solve", "_output"):
-    _name_for_cache(globals()[_name], _name)
-
-
-@njit(cache=True, error_model="numpy")
-def _trajectory(ts, order, p1, system, coupled, options, out, col, stats):
+@jit_function
+def trajectory(ts, order, p1, system, coupled, options, out, col, stats):
     """One trajectory for generator-1 power p1 (p.u.; the others at their p_m): ceil(t_end / dt)
     equal steps from 0 to t_end = ts[order[-1]] (s), the states at ts[order] written to
     out[:, col, order] (out (2, n_col, n_t, n): delta rad, omega rad/s), `stats` (4,) the
@@ -182,7 +178,7 @@ def _trajectory(ts, order, p1, system, coupled, options, out, col, stats):
     n_t = order.size
     stats[3] = math.nan
     y = np.empty(2 * n)
-    i_out = _start(y, ts, order, system, n, out, col)
+    i_out = start_trajectory(y, ts, order, system, n, out, col)
     t_end = ts[order[n_t - 1]]
     if t_end <= 0.0:
         return OK
@@ -250,7 +246,7 @@ def _trajectory(ts, order, p1, system, coupled, options, out, col, stats):
         network(delta1, pe, A, False, system, n, coupled, scratch)
         for k in range(n):
             a1[k] = (P[k] - d[k] * omega1[k] - pe[k]) / m[k]
-        i_out = _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
+        i_out = hermite_output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
         for k in range(n):
             delta0[k], omega0[k], a0[k] = delta1[k], omega1[k], a1[k]
     stats[0], stats[1], stats[2] = n_steps, iterations, factorisations
@@ -260,26 +256,24 @@ def _trajectory(ts, order, p1, system, coupled, options, out, col, stats):
     return OK
 
 
-_name_for_cache(_trajectory, "_trajectory")
-
 
 def _make_run(parallel: bool):
     def run(t, order, starts, P1, system, options, shared):
         n_g, n = P1.size, system.shape[0]
-        coupled = _mode(system, NO_NETWORK, n) != UNCOUPLED
+        coupled = rhs_mode(system, NO_NETWORK, n) != UNCOUPLED
         out = np.empty((2, 1 if shared else n_g, t.size, n))
         stats = np.zeros((n_g, 4))
         status = np.zeros(n_g, np.int64)
         for g in prange(n_g):
             col = 0 if shared else np.int64(g)  # prange's index may be unsigned: 0 or g would unify to float
-            status[g] = _trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out, col,
+            status[g] = trajectory(t, order[starts[g]:starts[g + 1]], P1[g], system, coupled, options, out, col,
                                     stats[g])
         for g in range(n_g):
             if status[g] != OK:
                 return out, stats, g, status[g]
         return out, stats, -1, OK
 
-    return _jit_variant(run, f"trapezoid_{int(parallel)}", parallel=parallel)
+    return jit_variant(run, f"trapezoid_{int(parallel)}", parallel=parallel)
 
 
 @functools.cache

@@ -1,5 +1,5 @@
 """Solver snapshots of a step case and their proper orthogonal decomposition (POD): the training data
-and the bases of the reduced-order surrogates (`solvers.pod_spline`, `solvers.pinn.jax_reduced`).
+and the bases of the reduced-order surrogates (`solvers.classical.pod_spline`, `solvers.pinn.jax_reduced`).
 
 Units: t in s, P1 in p.u., delta in rad, omega in rad/s. Shapes: n machines on the last axis.
 """
@@ -11,7 +11,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg
 
-from solvers.numba_rk import NumbaRK
+from solvers.classical.numba_rk import NumbaRK
 from systems.cases import Case
 
 __all__ = ["Basis", "chebyshev_nodes", "pod_basis", "pod_modes", "solver_snapshots"]

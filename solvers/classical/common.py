@@ -208,7 +208,7 @@ class StackedStates:
     """Mixin of the adapters that integrate a batch of trajectories from given states in one call,
     `_states(case, y0 (n_b, 2n), P (n_b, n), t, failed) -> y (n_b, len(t), 2n)` (`failed` names
     the scenario values in a SolveError): a step case's trajectories from its initial state, and
-    one phase of a fault case (`solvers.fault_phases.PhaseIntegrator`)."""
+    one phase of a fault case (`solvers.classical.fault_phases.PhaseIntegrator`)."""
 
     def _integrate(self: _States, case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(delta, omega), each (len(P1), len(t), n), at sorted unique times t >= 0 (s)."""
@@ -217,7 +217,7 @@ class StackedStates:
         return y[..., :case.n], y[..., case.n:]
 
     def _phase(self: _States, phase: Case, y0: np.ndarray, t: np.ndarray, T_c: np.ndarray) -> np.ndarray:
-        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        """`solvers.classical.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
         P = np.tile(np.asarray(phase.p_m), (y0.shape[0], 1))
         return self._states(phase, y0, P, t, which_p1(T_c, "t_c"))
 

@@ -1,15 +1,10 @@
-"""numba kernels of `solvers.numba_rk`: explicit Runge-Kutta on the n-machine swing equation
-(`systems.model`: lossy Kron-reduced coupling, optional infinite bus), the loop over the batch of
-input powers inside compiled code.
+"""numba kernels of `solvers.classical.numba_rk`: explicit Runge-Kutta on the n-machine swing
+equation (`systems.model`: lossy Kron-reduced coupling, optional infinite bus), the loop over the
+batch of input powers inside compiled code.
 
-Packed arguments (each array argument costs ~0.1 us of dispatch, so they are few):
+Arguments: `system` and `net` as `solvers.classical.kernels.layout`'s, and
 - `P1` (n_batch,): generator 1's mechanical power in each trajectory (p.u.); the other machines
   get their p_m from `system` (as `Case.powers`);
-- `system` (n, 7 + 2n), `system_array(case)`: per machine k the columns `M`, `D` (p.u.), `DELTA0`
-  (rad), `OMEGA0` (rad/s), `P_M`, `C_INF`, `S_INF` (p.u.), then row k of C and row k of S
-  (p.u., from `COUPLING`; `systems.model.coupling`); (n, 7) without C and S for the sparse form;
-- `net`: the network kept sparse, `systems.sparse_network.LUFactors` of the case (P_e from the bus
-  voltages, `solvers.numba_sparse`), or `NO_NETWORK` for the reduced form (C and S in `system`);
 - `options` (4,): rtol, atol, dt (s, rk4 only), max_steps.
 The state of one trajectory is y = [delta_1..n, omega_1..n] (2n,); with sensitivities it is
 followed by the columns of S = dy/dp (2n, 2n), p = (m_1..n, d_1..n), column j at
@@ -20,8 +15,8 @@ P_e takes n sin and n cos per evaluation (the expansion of `systems.model`: two 
 trigonometric call per pair of machines); a system whose machines see only their own susceptance
 to the infinite bus (C = S = 0, c_inf = 0: the SMIB) takes one sin per machine instead, and the
 same bits (the expansion's other terms are exact zeros). In the sparse form the network's part of
-P_e is two sparse triangular solves (`solvers.numba_sparse`) instead of the two dense mat-vecs; the
-sensitivities (identification) take the reduced form only.
+P_e is two sparse triangular solves (`solvers.classical.kernels.sparse`) instead of the two dense
+mat-vecs; the sensitivities (identification) take the reduced form only.
 """
 
 from __future__ import annotations
@@ -29,50 +24,34 @@ from __future__ import annotations
 import functools
 import math
 
-import numba
 import numpy as np
-from numba import njit, prange
+from numba import prange
 from scipy.integrate._ivp import dop853_coefficients as _c853
 
-from solvers.numba_sparse import sparse_power
-from systems.cases import Case
-from systems.model import coupling
+from solvers.classical.kernels.jit import jit_function, jit_variant
+from solvers.classical.kernels.layout import (
+    C_INF,
+    COUPLING,
+    DENSE,
+    NOT_FINITE,
+    OK,
+    P_M,
+    S_INF,
+    SPARSE,
+    STEP_TOO_SMALL,
+    TOO_MANY_STEPS,
+    UNCOUPLED,
+    D,
+    M,
+    rhs_mode,
+    start_trajectory,
+)
+from solvers.classical.kernels.sparse import sparse_power
 
-__all__ = ["DOP853", "DOPRI5", "METHODS", "NO_NETWORK", "RK4", "check_threads", "kernel", "system_array"]
-
-# Columns of the packed system (see the module docstring); COUPLING + j is C[k, j],
-# COUPLING + n + j is S[k, j].
-M, D, DELTA0, OMEGA0, P_M, C_INF, S_INF, COUPLING = range(8)
-
-
-# The modes of the right-hand side: P_e,k = s_inf_k sin(delta_k) only; the reduced (dense)
-# coupling; the network kept sparse (`net`).
-UNCOUPLED, DENSE, SPARSE = 0, 1, 2
-# The reduced form's `net`: None, so that the kernels compiled for it carry no factors (a tuple of
-# 12 arrays passed down to every right-hand side costs their reference counts on each call: numba-rk
-# was 1.7-13x slower with `LUFactors.empty()` here, docs/notebook.md), and the sparse branches are
-# pruned at compile time (`net is None`).
-NO_NETWORK = None
-
-
-def check_threads(owner: str, threads: int) -> None:
-    """The rule of a numba adapter's `threads` option: at most numba's NUMBA_NUM_THREADS, or a
-    ValueError starting with `owner`."""
-    if threads > numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"{owner}: option threads must be <= {numba.config.NUMBA_NUM_THREADS} "
-                         f"(numba's NUMBA_NUM_THREADS), got {threads!r}")
-
-
-def system_array(case: Case, sparse: bool = False) -> np.ndarray:
-    """The packed system of `case` (n, 7 + 2n) float64, the layout of the module docstring; (n, 7)
-    with `sparse` (the coupling is then `net`'s)."""
-    k = coupling(case)
-    columns = np.array([case.m, case.d, case.delta0, case.omega0, case.p_m, k.c_inf, k.s_inf], np.float64).T
-    return np.ascontiguousarray(columns) if sparse else np.column_stack([columns, k.C, k.S])
+__all__ = ["DOP853", "DOPRI5", "METHODS", "RK4", "kernel", "trajectory_kernel"]
 
 RK4, DOPRI5, DOP853 = 0, 1, 2
 METHODS = {"rk4": RK4, "dopri5": DOPRI5, "dop853": DOP853}
-OK, TOO_MANY_STEPS, STEP_TOO_SMALL, NOT_FINITE = 0, 1, 2, 3
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0  # scipy's step-size control
 
 # Dormand-Prince 5(4) with Shampine's quartic dense output: scipy's RK45 tableau.
@@ -101,44 +80,12 @@ D8_A, D8_C, D8_B = _c853.A.copy(), _c853.C.copy(), _c853.B.copy()
 D8_E3, D8_E5, D8_D = _c853.E3.copy(), _c853.E5.copy(), _c853.D.copy()
 
 
-@njit(cache=True, error_model="numpy")
-def _start(y, ts, order, system, n, out, col):
-    """y = the initial state (delta0, omega0 of each machine; zero sensitivities); writes it to
-    trajectory `col` of `out` (see `kernel`) at every output time ts[order[i]] <= 0 and returns how
-    many output times that was."""
-    for k in range(n):
-        y[k], y[n + k] = system[k, DELTA0], system[k, OMEGA0]
-    for i in range(2 * n, y.size):
-        y[i] = 0.0
-    i_out = 0
-    while i_out < order.size and ts[order[i_out]] <= 0.0:
-        for i in range(y.size):
-            out[i // n, col, order[i_out], i % n] = y[i]
-        i_out += 1
-    return i_out
-
-
-@njit(cache=True, error_model="numpy")
-def _mode(system, net, n):
-    """SPARSE when `net` holds factors (not None); else DENSE when P_e needs more than s_inf_k sin(delta_k)
-    (some C, S or c_inf entry is non-zero), else UNCOUPLED."""
-    if net is not None:
-        return SPARSE
-    for k in range(n):
-        if system[k, C_INF] != 0.0:
-            return DENSE
-        for j in range(2 * n):
-            if system[k, COUPLING + j] != 0.0:
-                return DENSE
-    return UNCOUPLED
-
-
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
-    """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `mode` from `_mode`
-    (UNCOUPLED: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,) work space: cos
-    of each angle, sin of each angle, one row of the Jacobian of P_e (DENSE) or the network's P_e
-    (SPARSE); work (nb,) complex128, the sparse solves' (empty otherwise). (Indexes into scratch,
+    """out = dy/dt for state y (see the module docstring); P (n,) p.u.; `mode` from
+    `layout.rhs_mode` (UNCOUPLED: P_e,k = s_inf_k sin(delta_k), one sin per machine); scratch (3n,)
+    work space: cos of each angle, sin of each angle, one row of the Jacobian of P_e (DENSE) or the
+    network's P_e (SPARSE); work (nb,) complex128, the sparse solves' (empty otherwise). (Indexes into scratch,
     not slices of it: a view costs reference counting on every call, measured 3x on the SMIB
     grid.) `sens` with SPARSE is not supported (`kernel` refuses it)."""
     two_n = 2 * n
@@ -203,7 +150,7 @@ def _rhs(y, out, P, system, net, n, sens, mode, scratch, work):
                 out[base + n + k] = s_acc
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _rms(v, scale, n_ctrl):
     total = 0.0
     for i in range(n_ctrl):
@@ -211,7 +158,7 @@ def _rms(v, scale, n_ctrl):
     return math.sqrt(total / n_ctrl)
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _initial_step(y0, f0, P, system, net, n, sens, mode, scratch, cwork, t_end, order, rtol, atol, work):
     """scipy's `select_initial_step` (Hairer, Norsett & Wanner, II.4) on the controlled entries."""
     n_ctrl = 2 * n
@@ -234,7 +181,7 @@ def _initial_step(y0, f0, P, system, net, n, sens, mode, scratch, cwork, t_end, 
     return min(100 * h0, h1, t_end)
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _stages(K, y, h, A, first, last, tmp, P, system, net, n, sens, mode, scratch, cwork):
     """K[s] = f(y + h sum_j A[s, j] K[j]) for s in [first, last)."""
     for s in range(first, last):
@@ -272,7 +219,7 @@ def _make_adaptive(method: int, sens: bool, n: int):
         y, y_new, tmp = work[3], work[4], work[5]
         F = np.empty((7, n_y))
         t_end = ts[order[n_t - 1]]
-        i_out = _start(y, ts, order, system, n, out, col)
+        i_out = start_trajectory(y, ts, order, system, n, out, col)
         if t_end <= 0.0:
             return OK
         _rhs(y, K[0], P, system, net, n, sens, mode, scratch, cwork)
@@ -345,10 +292,10 @@ def _make_adaptive(method: int, sens: bool, n: int):
                 return NOT_FINITE
         return OK
 
-    return _jit_variant(adaptive, f"{method}_{int(sens)}_{n}")
+    return jit_variant(adaptive, f"{method}_{int(sens)}_{n}")
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, net, n, sens, mode, scratch, cwork):
     """F: dopri5's Q^T = (K^T P)^T (4 rows), or DOP853's 7 rows (3 extra stages evaluated)."""
     n_y = y.size
@@ -373,7 +320,7 @@ def _dense_coefficients(method, K, y, y_new, h, F, tmp, P, system, net, n, sens,
             F[3 + r, i] = h * acc
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _dense_eval(method, F, y_i, i, x, h):
     """Entry i of the step's interpolant at x = (t - t_old) / h in [0, 1]."""
     if method == DOPRI5:
@@ -404,7 +351,7 @@ def _make_rk4(sens: bool, n: int):
         work = np.empty((4, n_y))
         y, y_old, f_new, tmp = work[0], work[1], work[2], work[3]
         t_end = ts[order[n_t - 1]]
-        i_out = _start(y, ts, order, system, n, out, col)
+        i_out = start_trajectory(y, ts, order, system, n, out, col)
         if t_end <= 0.0:
             return OK
         n_steps = math.ceil(t_end / dt)
@@ -443,42 +390,14 @@ def _make_rk4(sens: bool, n: int):
                 return NOT_FINITE
         return OK
 
-    return _jit_variant(rk4, f"{int(sens)}_{n}")
+    return jit_variant(rk4, f"{int(sens)}_{n}")
 
 
-def _name_for_cache(dispatcher, name: str):
-    """Give `dispatcher` the fixed identity `name` in pickles, so that numba's on-disk cache can
-    find a kernel that calls it: numba keys a closure's cache entry by the pickle of its closure
-    variables, and a dispatcher pickles with a random per-process uuid unless it has one (the
-    batch kernels, closures over the integrators that call these functions, were compiled afresh
-    in every process: ~5-10 s each). Uses numba's private `_set_uuid`; without it the kernels
-    still work, uncached."""
-    set_uuid = getattr(dispatcher, "_set_uuid", None)
-    if set_uuid is not None and getattr(dispatcher, "_MemoMixin__uuid", "") is None:
-        set_uuid(f"{__name__}.{name}")
-    return dispatcher
-
-
-for _name in ("_start", "_mode", "sparse_power", "_rhs", "_rms", "_initial_step", "_stages", "_dense_coefficients",
-              "_dense_eval"):
-    _name_for_cache(globals()[_name], _name)
-
-
-def _jit_variant(py_func, variant: str, **flags):
-    """`py_func` compiled (cached, numpy's error model), its qualified name suffixed by `variant`.
-    The variants of one closure must differ in name: numba names a compiled function (and the
-    environment it boxes results with) by qualified name, argument types and a per-process
-    counter, so two variants loaded from the cache that two processes numbered alike would clash
-    (measured: a kernel returning with "'descr' is NULL")."""
-    py_func.__qualname__ = f"{py_func.__qualname__}_{variant}"
-    return _name_for_cache(njit(cache=True, error_model="numpy", **flags)(py_func), py_func.__qualname__)
-
-
-def _make_trajectory(method: int, sens: bool, n: int):
+def trajectory_kernel(method: int, sens: bool, n: int):
     """One trajectory for generator-1 power p1 (p.u.; the other generators at their p_m, as
     `Case.powers`), compiled for one method, `sens` and n machines: `(t, order, p1, system, net,
     mode, options, out, index) -> status`, the states at t[order] written into out[:, index]
-    (the integrators' layout), `options` packed as `kernel`'s, `mode` `_mode`'s."""
+    (the integrators' layout), `options` packed as `kernel`'s, `mode` `layout.rhs_mode`'s."""
     if method == RK4:
         rk4 = _make_rk4(sens, n)
 
@@ -494,11 +413,11 @@ def _make_trajectory(method: int, sens: bool, n: int):
             P[0] = p1
             return adaptive(t, order, P, system, net, mode, options[0], options[1], int(options[3]), out, index)
 
-    return _jit_variant(trajectory, f"{method}_{int(sens)}_{n}")
+    return jit_variant(trajectory, f"{method}_{int(sens)}_{n}")
 
 
 def _make_batch(method: int, sens: bool, parallel: bool, n: int):
-    trajectory = _make_trajectory(method, sens, n)
+    trajectory = trajectory_kernel(method, sens, n)
 
     def batch(t, P1, system, net, options):
         n_b, n_t = P1.size, t.size
@@ -508,7 +427,7 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
                 ordered = False
                 break
         order = np.arange(n_t) if ordered else np.argsort(t, kind="mergesort")
-        mode = _mode(system, net, n)
+        mode = rhs_mode(system, net, n)
         if sens and mode == SPARSE:
             raise ValueError("the sensitivities take the reduced network only (net = NO_NETWORK)")
         out = np.empty((2 + (4 * n if sens else 0), n_b, n_t, n))
@@ -520,17 +439,17 @@ def _make_batch(method: int, sens: bool, parallel: bool, n: int):
                 return out, b, status[b]
         return out, -1, OK
 
-    return _jit_variant(batch, f"{method}_{int(sens)}_{int(parallel)}_{n}", parallel=parallel)
+    return jit_variant(batch, f"{method}_{int(sens)}_{int(parallel)}_{n}", parallel=parallel)
 
 
 @functools.cache
 def kernel(method: int, sens: bool, parallel: bool, n: int = 1):
     """The compiled batch integrator `(t, P1, system, net, options) -> (out, failed, status)` of an
-    n-machine `system` (`system_array`) and `net` (module docstring; `NO_NETWORK` with `sens`) at
-    times t (s, 1-D, >= 0, any order, repeats allowed) for each generator-1 power P1 (n_batch,) p.u.: out (2 (+ 4n with `sens`), n_batch, n_t, n), the
-    state y (module docstring) in blocks of n, so that out[0] is delta (rad) and out[1] omega
-    (rad/s), each (n_batch, n_t, n) as the adapter returns them (no reshaping per query), and
-    out[2 + 2j], out[3 + 2j] are d delta / d p_j, d omega / d p_j, p = (m_1..n, d_1..n) p.u.;
-    `failed` the index of the first failed trajectory (-1: none) and `status` its code.
-    `parallel`: trajectories over numba's threads (prange)."""
+    n-machine `system` and `net` (`layout`'s; `layout.NO_NETWORK` with `sens`) at times t (s, 1-D,
+    >= 0, any order, repeats allowed) for each generator-1 power P1 (n_batch,) p.u.: out (2 (+ 4n
+    with `sens`), n_batch, n_t, n), the state y (module docstring) in blocks of n, so that out[0] is
+    delta (rad) and out[1] omega (rad/s), each (n_batch, n_t, n) as the adapter returns them (no
+    reshaping per query), and out[2 + 2j], out[3 + 2j] are d delta / d p_j, d omega / d p_j,
+    p = (m_1..n, d_1..n) p.u.; `failed` the index of the first failed trajectory (-1: none) and
+    `status` its code (`layout.STATUS`). `parallel`: trajectories over numba's threads (prange)."""
     return _make_batch(method, sens, parallel, n)

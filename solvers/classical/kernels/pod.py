@@ -1,9 +1,9 @@
-"""numba kernels of `solvers.pod_spline`: the tensor-product interpolant of a POD basis's modal
+"""numba kernels of `solvers.classical.pod_spline`: the tensor-product interpolant of a POD basis's modal
 coefficients, evaluated at query points.
 
 The interpolant of one quantity (the angles or the speeds), every array float64:
 - `nodes` (S,) the P1 nodes (p.u.) and `weights` (S,) their barycentric weights: the polynomial
-  interpolant of degree S - 1 in P1 (`lobatto_nodes`);
+  interpolant of degree S - 1 in P1 (`solvers.classical.pod_spline.lobatto_nodes`);
 - `values`, `slopes` (n_knots, S, k): the k modal coefficients at uniform time knots t_i = i h
   (i = 0 .. n_knots - 1, h s) of each node's trajectory, and their time derivatives (1/s): the
   piecewise cubic Hermite interpolant in t;
@@ -15,21 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from solvers.snapshots import chebyshev_nodes
-
-__all__ = ["grid", "lobatto_nodes", "points"]
-
-
-def lobatto_nodes(low: float, high: float, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """`count` >= 2 Chebyshev-Lobatto nodes (the extrema of T_{count-1}, both ends included) on
-    [low, high], ascending, and their barycentric weights (-1)^j, halved at the ends (Berrut and
-    Trefethen 2004, the second form: any common factor cancels)."""
-    nodes = chebyshev_nodes(low, high, count)
-    j = np.arange(count)
-    weights = np.where(j % 2 == 0, 1.0, -1.0)
-    weights[0] *= 0.5
-    weights[-1] *= 0.5
-    return nodes, weights
+__all__ = ["grid", "points"]
 
 
 @njit(cache=True)

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, Estimate, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     ObservationLayout,
@@ -21,7 +21,7 @@ from solvers.classical import (
     search_boxes,
     which_p1,
 )
-from solvers.fault_phases import switched_states
+from solvers.classical.fault_phases import switched_states
 from solvers.options import PositiveInt
 from systems.cases import Case, Observations
 from systems.model import accelerations, coupling
@@ -91,7 +91,7 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
     A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query
     (output at the times before the largest t_c and at every t_c), then every post-fault phase
     from its state at t_c, mapped over the t_c at the union of their times since t_c
-    (`solvers.fault_phases`); each phase's integrator is cached per output grid as above.
+    (`solvers.classical.fault_phases`); each phase's integrator is cached per output grid as above.
     """
 
     name: ClassVar[str] = "casadi-cvodes"
@@ -168,7 +168,7 @@ class CasadiCVODES(PointsByP1, AbstractSolver):
         return StepCount(int(stats["nsteps"]), int(stats["nfevals"]))
 
     def _phase(self, phase: Case, y0: np.ndarray, times: np.ndarray, T_c: np.ndarray) -> np.ndarray:
-        """`solvers.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
+        """`solvers.classical.fault_phases.PhaseIntegrator`: one phase of a fault case from y0 (n_b, 2n)."""
         n_b, n = y0.shape[0], phase.n
         fn = self._integrators(tuple(times), n_b, phase)
         params = np.repeat(np.concatenate([phase.p_m, phase.m, phase.d])[:, None], n_b, axis=1)

@@ -1,5 +1,6 @@
 """The industry's integrator: the implicit trapezoidal rule at a fixed step (PSS/E's half cycle by
-default) with Newton iterations, compiled with numba; the kernels are in `solvers.trapezoid_kernels`."""
+default) with Newton iterations, compiled with numba; the kernels are in
+`solvers.classical.kernels.trapezoid`."""
 
 from __future__ import annotations
 
@@ -9,10 +10,8 @@ from typing import Any, ClassVar
 import numba
 import numpy as np
 
-from solvers import trapezoid_kernels as kernels
-from solvers import trapezoid_sparse
 from solvers.base import SWEEP_POINT, AbstractSolver, Estimate, FitReport, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     SPARSE_FROM_MACHINES,
     NetworkForm,
     ObservationLayout,
@@ -22,9 +21,11 @@ from solvers.classical import (
     keeps_network_sparse,
     search_boxes,
 )
-from solvers.numba_kernels import NOT_FINITE, D, M, check_threads, system_array
+from solvers.classical.kernels import trapezoid as kernels
+from solvers.classical.kernels import trapezoid_sparse
+from solvers.classical.kernels.layout import STATUS, D, M, check_threads, system_array
+from solvers.classical.kernels.trapezoid_faults import fault_kernel
 from solvers.options import Bounds, OptionSchema, PositiveFloat, PositiveInt, StrictBool
-from solvers.trapezoid_faults import fault_kernel
 from systems.cases import Observations
 
 __all__ = ["HALF_CYCLE", "STEPS", "TIGHT_STEP", "Trapezoid"]
@@ -36,11 +37,6 @@ HALF_CYCLE = 1.0 / 120.0  # s, half a cycle at 60 Hz: PSS/E's customary step
 TIGHT_STEP = 2e-4
 # s, the work-precision sweep: eight points, at most the default run's eight tolerances (`step_sweep`)
 STEPS = (0.05, 0.02, HALF_CYCLE, 0.005, 0.002, 0.001, 5e-4, TIGHT_STEP)
-_FAILURES = {
-    kernels.NEWTON_FAILED: "Newton did not converge to newton_tol in max_newton iterations",
-    kernels.SINGULAR: "the Newton matrix is singular",
-    NOT_FINITE: "the state became NaN or inf",
-}
 
 
 class TrapezoidOptions(OptionSchema):
@@ -59,7 +55,7 @@ class Trapezoid(AbstractSolver):
     (PSS/E, ANDES), compiled with numba, one trajectory per P1 in one compiled call.
 
     Each step solves the n equations of the angle increments (omega eliminated; the derivation is
-    `solvers.trapezoid_kernels`'s docstring) by Newton's method with a reused LU factorisation of
+    `solvers.classical.kernels.trapezoid`'s docstring) by Newton's method with a reused LU factorisation of
     the n x n Jacobian, factorised again only when an update fails to halve; output at the query
     times by cubic Hermite interpolation of each step's end states and derivatives. Second order.
     Options: dt (s, default half a cycle, 1/120 s: ceil(t / dt) equal steps; config "tight":
@@ -69,15 +65,15 @@ class Trapezoid(AbstractSolver):
     the default: sparse from `classical.SPARSE_FROM_MACHINES` machines on a case that carries its
     network, numba-rk's rule); m_bounds, d_bounds (p.u.; default the case's boxes), the search box
     of `identify`: least squares with a finite-difference Jacobian.
-    `stats` (n_trajectories, 4): each trajectory's `trapezoid_kernels.STATS` in the last call.
+    `stats` (n_trajectories, 4): each trajectory's `kernels.trapezoid.STATS` in the last call.
     Reduced, the network is the case's Kron-reduced one, dense: a factorisation costs ~n^3 / 3
     multiply-adds, an iteration ~5 n^2 (P_e 4 n^2, the triangular solves n^2), a step one more P_e.
-    Sparse (`solvers.trapezoid_sparse`), P_e comes from the bus voltages (two sparse triangular
+    Sparse (`solvers.classical.kernels.trapezoid_sparse`), P_e comes from the bus voltages (two sparse triangular
     solves with the SuperLU factors of the unreduced network) and the Newton matrix is diagonal
     (each machine's own slope, no factorisation): an iteration costs O(nnz(L + U) + n).
     A fault case (`Case.fault`, P1 the clearing time t_c s), on its reduced networks: the fault-on
     phase to t_c, ending on a step, then the post-fault phase from the state at t_c
-    (`solvers.trapezoid_faults`).
+    (`solvers.classical.kernels.trapezoid_faults`).
     """
 
     name: ClassVar[str] = "trapezoid"
@@ -129,7 +125,7 @@ class Trapezoid(AbstractSolver):
 
     def _run(self, t: np.ndarray, order: np.ndarray, starts: np.ndarray, P1: np.ndarray, system: np.ndarray,
              options: np.ndarray, shared: bool) -> np.ndarray:
-        """The kernel's states (`trapezoid_kernels.run_kernel`; a fault case's,
+        """The kernel's states (`kernels.trapezoid.run_kernel`; a fault case's,
         `trapezoid_faults.fault_kernel`, with P1 its clearing times and `system` the fault-on one),
         or SolveError naming P1 (or t_c) and the time of the failed step; the per-trajectory
         `kernels.STATS` of the call in `self.stats`."""
@@ -141,7 +137,7 @@ class Trapezoid(AbstractSolver):
             states, self.stats, failed, status = self._fault(t, order, starts, P1, system, self._post, options, shared)
         if failed >= 0:
             raise SolveError(f"{self.name}: integration failed at {self.case.scenario.symbol}={P1[failed]:g}: "
-                             f"{_FAILURES[status]} (step from t={self.stats[failed, 3]:g} s)")
+                             f"{STATUS[status]} (step from t={self.stats[failed, 3]:g} s)")
         return states
 
     def _grid(self, t: np.ndarray, P1: np.ndarray, system: np.ndarray, options: np.ndarray) -> np.ndarray:

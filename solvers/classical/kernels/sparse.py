@@ -1,5 +1,5 @@
 """The network part of P_e from the unreduced network, compiled: the right-hand side of
-`solvers.numba_kernels` in its sparse mode (`systems.sparse_network`).
+`solvers.classical.kernels.rk` in its sparse mode (`systems.sparse_network`).
 
 With the factors P_r Y_bb P_c = L U of `systems.sparse_network.LUFactors` (`net`), the bus voltages
 of angles delta are two triangular solves of the machines' injections, and
@@ -11,12 +11,12 @@ O(nnz(L + U)) a call instead of the reduced coupling's O(n^2).
 
 from __future__ import annotations
 
-from numba import njit
+from solvers.classical.kernels.jit import jit_function
 
 __all__ = ["sparse_power"]
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def sparse_power(scratch, net, n, work):
     """scratch (3n,): cos delta_k at [k], sin delta_k at [n + k] (read); P_e,k of the network
     (p.u., no infinite bus) written at [2n + k]. net: `LUFactors`; work (nb,) complex128 scratch."""

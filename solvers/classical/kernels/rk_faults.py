@@ -1,16 +1,17 @@
-"""numba kernel of `solvers.numba_rk` on a fault case (`systems.cases.Fault`): the fault-on network
-from the equilibrium to the clearing time t_c, the post-fault network from the state at t_c, no
-step across the switch.
+"""numba kernel of `solvers.classical.numba_rk` on a fault case (`systems.cases.Fault`): the fault-on
+network from the equilibrium to the clearing time t_c, the post-fault network from the state at
+t_c, no step across the switch.
 
 The fault-on phase does not depend on t_c, so one trajectory of it serves every clearing time of a
 call: integrated from t = 0 to the call's largest t_c (its last step ends there), its dense output
 gives the states at each query time before a group's t_c and the state at every t_c. Each
 post-fault trajectory then starts from its own state at its t_c: the system is autonomous, so it is
 integrated in the time since t_c, from the packed post-fault system with that state as its initial
-one (`numba_kernels.DELTA0`, `OMEGA0`). A query at t = t_c answers the state at t_c.
+one (`layout.DELTA0`, `OMEGA0`). A query at t = t_c answers the state at t_c.
 
-Arguments are `numba_kernels`' (`system_array` of each phase, `net`, `options`), and the groups of
-`solvers.classical.PointGroups`, with the clearing time in place of P1.
+Arguments are `solvers.classical.kernels.layout`'s (`system_array` of each phase, `net`),
+`options` as `solvers.classical.kernels.rk`'s, and the groups of
+`solvers.classical.common.PointGroups`, with the clearing time in place of P1.
 """
 
 from __future__ import annotations
@@ -20,13 +21,15 @@ import functools
 import numpy as np
 from numba import prange
 
-from solvers.numba_kernels import DELTA0, OK, OMEGA0, P_M, _jit_variant, _make_trajectory, _mode
+from solvers.classical.kernels.jit import jit_variant
+from solvers.classical.kernels.layout import DELTA0, OK, OMEGA0, P_M, rhs_mode
+from solvers.classical.kernels.rk import trajectory_kernel
 
 __all__ = ["fault_kernel"]
 
 
 def _make_fault(method: int, parallel: bool, n: int):
-    trajectory = _make_trajectory(method, False, n)
+    trajectory = trajectory_kernel(method, False, n)
 
     def switched(t, order, starts, T_c, on, post, net, options, shared):
         n_g, n_t = T_c.size, t.size
@@ -48,10 +51,10 @@ def _make_fault(method: int, parallel: bool, n: int):
         on_order = picked[np.argsort(ts[picked], kind="mergesort")]
         states = np.empty((2, 1, n_t + n_g, n))
         p1 = on[0, P_M]
-        code = trajectory(ts, on_order, p1, on, net, _mode(on, net, n), options, states, 0)
+        code = trajectory(ts, on_order, p1, on, net, rhs_mode(on, net, n), options, states, 0)
         if code != OK:
             return out, latest, code
-        mode = _mode(post, net, n)
+        mode = rhs_mode(post, net, n)
         for g in prange(n_g):
             col = 0 if shared else np.int64(g)  # prange's index may be unsigned: 0 or g would unify to float
             split, end = starts[g], starts[g + 1]
@@ -78,7 +81,7 @@ def _make_fault(method: int, parallel: bool, n: int):
                 return out, g, status[g]
         return out, -1, OK
 
-    return _jit_variant(switched, f"{method}_{int(parallel)}_{n}", parallel=parallel)
+    return jit_variant(switched, f"{method}_{int(parallel)}_{n}", parallel=parallel)
 
 
 @functools.cache
@@ -86,12 +89,12 @@ def fault_kernel(method: int, parallel: bool, n: int):
     """The compiled integrator of a fault case `(t, order, starts, T_c, on, post, net, options,
     shared) -> (out, failed, status)`: t (n_t,) s >= 0; group g the times t[order[starts[g]:
     starts[g + 1]]] in ascending order (int64 order, starts (n_g + 1,)), cleared at T_c[g] (n_g,)
-    s >= 0; `on`, `post` the packed fault-on and post-fault systems (`numba_kernels.system_array`
-    of `Case.phase`), one `net` for both (`NO_NETWORK`: a fault case's networks are reduced);
-    `options` as `numba_kernels.kernel`'s. out (2, n_g, n_t, n), out[0] delta (rad) and out[1]
+    s >= 0; `on`, `post` the packed fault-on and post-fault systems (`layout.system_array`
+    of `Case.phase`), one `net` for both (`layout.NO_NETWORK`: a fault case's networks are
+    reduced); `options` as `rk.kernel`'s. out (2, n_g, n_t, n), out[0] delta (rad) and out[1]
     omega (rad/s) of group g at column g (a `solve`: every group the same order of all t); with
     `shared`, out (2, 1, n_t, n), every group writing its own entries (`solve_points`). `failed`
     the first failed group (-1: none; a failed fault-on phase: the group of the largest t_c) and
-    `status` its code (`numba_kernels`'). `parallel`: post-fault trajectories over numba's
+    `status` its code (`layout.STATUS`). `parallel`: post-fault trajectories over numba's
     threads (prange)."""
     return _make_fault(method, parallel, n)

@@ -1,5 +1,5 @@
 """The classical reduced-order surrogate: a POD basis of numba-rk trajectories, its modal
-coefficients interpolated in P1 and t, queried by numba (`solvers.pod_kernels`)."""
+coefficients interpolated in P1 and t, queried by numba (`solvers.classical.kernels.pod`)."""
 
 from __future__ import annotations
 
@@ -8,19 +8,31 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from solvers import pod_kernels as kernels
 from solvers.base import AbstractSolver, Estimate, FitReport
-from solvers.numba_rk import NumbaRK
+from solvers.classical.kernels import pod as kernels
+from solvers.classical.numba_rk import NumbaRK
+from solvers.classical.snapshots import chebyshev_nodes, pod_modes
 from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, int_at_least
-from solvers.snapshots import pod_modes
 from systems.cases import STEP_SCENARIO, Observations, Scenario
 from systems.model import accelerations, coupling
 
-__all__ = ["SNAPSHOT_SWEEP", "PodSpline", "PodSplineOptions"]
+__all__ = ["SNAPSHOT_SWEEP", "PodSpline", "PodSplineOptions", "lobatto_nodes"]
 
 SNAPSHOT_SWEEP = (5, 9, 17, 33)  # n_snapshots of the work-precision curve, coarsest first
 ATOL_PER_RTOL = 1e-3  # the snapshots' atol = rtol x this (the tolerance sweeps' rule)
 AtLeastTwo = int_at_least(2)
+
+
+def lobatto_nodes(low: float, high: float, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """`count` >= 2 Chebyshev-Lobatto nodes (the extrema of T_{count-1}, both ends included) on
+    [low, high], ascending, and their barycentric weights (-1)^j, halved at the ends (Berrut and
+    Trefethen 2004, the second form: any common factor cancels)."""
+    nodes = chebyshev_nodes(low, high, count)
+    j = np.arange(count)
+    weights = np.where(j % 2 == 0, 1.0, -1.0)
+    weights[0] *= 0.5
+    weights[-1] *= 0.5
+    return nodes, weights
 
 
 class PodSplineOptions(OptionSchema):
@@ -35,7 +47,7 @@ class PodSplineOptions(OptionSchema):
 
 
 class Interpolant(NamedTuple):
-    """One quantity's interpolant, the arguments of `solvers.pod_kernels.grid` after h, nodes and
+    """One quantity's interpolant, the arguments of `solvers.classical.kernels.pod.grid` after h, nodes and
     weights: values, slopes (n_times, n_snapshots, k), basis_t (k, n), mean (n,)."""
 
     values: np.ndarray
@@ -70,7 +82,7 @@ class PodSpline(AbstractSolver):
     out). The modal coefficients are interpolated by the polynomial of degree n_snapshots - 1
     through the nodes in P1 (barycentric) and by cubic Hermite pieces between the knots in t,
     with the exact derivatives: the speeds' projections for the angles', the swing equation's
-    accelerations for the speeds'. A query is `solvers.pod_kernels`' compiled evaluation.
+    accelerations for the speeds'. A query is `solvers.classical.kernels.pod`' compiled evaluation.
     Queries outside [0, t_final] x [p1_min, p1_max] are refused unless `extrapolate=True`.
     Deterministic: `seed` is accepted (every adapter that trains has one) and changes nothing.
     It does not identify m and d (its model holds the case's), nor integrate fault cases.
@@ -108,7 +120,7 @@ class PodSpline(AbstractSolver):
         """Snapshots, the two bases and their interpolants, and the kernels compiled (or loaded
         from numba's cache) on a one-point query."""
         case, options = self.case, self.options
-        self._nodes, self._weights = kernels.lobatto_nodes(case.p1_min, case.p1_max, options["n_snapshots"])
+        self._nodes, self._weights = lobatto_nodes(case.p1_min, case.p1_max, options["n_snapshots"])
         knots = np.linspace(0.0, case.t_final, options["n_times"])
         self._h = float(knots[1])
         rk = NumbaRK(case, rtol=options["rtol"], atol=options["rtol"] * ATOL_PER_RTOL)

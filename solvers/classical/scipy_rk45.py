@@ -8,7 +8,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from solvers.base import AbstractSolver, Estimate, SolveError, StepCount
-from solvers.classical import (
+from solvers.classical.common import (
     TOLERANCE_CONFIGS,
     TOLERANCE_MARKS,
     PointsByP1,
@@ -18,7 +18,7 @@ from solvers.classical import (
     identify_by_simulation,
     rhs_args,
 )
-from solvers.fault_phases import switched_states
+from solvers.classical.fault_phases import switched_states
 from systems.cases import Case, Observations
 from systems.model import Coupling, accelerations
 
@@ -55,7 +55,7 @@ class ScipyRK45(StackedStates, PointsByP1, AbstractSolver):
     search box of `identify`, which simulates every P1 in one stacked system whatever `batch`.
     A fault case (P1 the clearing time t_c s): the fault-on phase once for every t_c of a query,
     with dense output, then each post-fault phase from its state at t_c, looped or stacked as
-    `batch` says (`solvers.fault_phases`).
+    `batch` says (`solvers.classical.fault_phases`).
     """
 
     name: ClassVar[str] = "scipy-rk45"

@@ -1,6 +1,6 @@
-"""The trapezoid's network kept sparse: `solvers.trapezoid_kernels`'s step on the unreduced network
-(`systems.sparse_network`), P_e from two sparse triangular solves (`solvers.numba_sparse`) each
-Newton iteration, compiled with numba.
+"""The trapezoid's network kept sparse: `solvers.classical.kernels.trapezoid`'s step on the unreduced
+network (`systems.sparse_network`), P_e from two sparse triangular solves
+(`solvers.classical.kernels.sparse`) each Newton iteration, compiled with numba.
 
 Each step solves the trapezoid kernels' n equations of the angle increments x,
 
@@ -25,10 +25,11 @@ solution of Y_bb V = sum_j w_j e^{j delta_j} e_at[j]:
 Z_kk = (Y_bb^-1)[at[k], at[k]] (p.u.): the constant second term (`self_coupling`) removes machine
 k's own EMF from V_at[k], on which P_e,k does not depend through the angle.
 
-Packed arguments: `system` (n, 8), `solvers.numba_kernels.system_array(case, sparse=True)`'s
-columns and, at `SELF`, Im(conj(w_k)^2 conj(Z_kk)) (p.u.; `prepare`); `net` the case's
-`systems.sparse_network.LUFactors`; `options` and the statistics as `solvers.trapezoid_kernels`'s
-(the factorisations column counts none: the diagonal needs none).
+Packed arguments: `system` (n, 8), `solvers.classical.kernels.layout.system_array(case,
+sparse=True)`'s columns and, at `layout.SELF`, Im(conj(w_k)^2 conj(Z_kk)) (p.u.; `prepare`); `net`
+the case's `systems.sparse_network.LUFactors`; `options` and the statistics as
+`solvers.classical.kernels.trapezoid`'s (the factorisations column counts none: the diagonal needs
+none).
 """
 
 from __future__ import annotations
@@ -38,32 +39,32 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from solvers.numba_kernels import (
+from solvers.classical.kernels.jit import jit_function, jit_variant
+from solvers.classical.kernels.layout import (
     C_INF,
+    NEWTON_FAILED,
     NOT_FINITE,
     OK,
     P_M,
     S_INF,
+    SELF,
+    SINGULAR,
     D,
     M,
-    _jit_variant,
-    _name_for_cache,
-    _start,
+    start_trajectory,
     system_array,
 )
-from solvers.numba_sparse import sparse_power
-from solvers.trapezoid_kernels import NEWTON_FAILED, SINGULAR, _output
+from solvers.classical.kernels.sparse import sparse_power
+from solvers.classical.kernels.trapezoid import hermite_output
 from systems.cases import Case
 from systems.sparse_network import LUFactors, lu_factors
 
-__all__ = ["SELF", "prepare", "run_kernel", "self_coupling"]
-
-SELF = 7  # column of `system`: the constant part of each machine's own slope (module docstring)
+__all__ = ["prepare", "run_kernel", "self_coupling"]
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _self_impedances(net, n):
     """Z_kk w_k (n,) complex p.u.: machine k's bus voltage with its EMF 1 at angle 0 and the
     others' EMFs zero (one `sparse_power` each)."""
@@ -88,7 +89,7 @@ def self_coupling(net: LUFactors) -> np.ndarray:
 def prepare(case: Case, parallel: bool) -> tuple[np.ndarray, Callable, LUFactors]:
     """(system, kernel, net) of `case`'s carried network (`Case.network`): the packed system (n, 8)
     (module docstring), `run_kernel(parallel)` with `net` bound, so that it is called as
-    `trapezoid_kernels.run_kernel`'s kernel is, and the factors `net` (one SuperLU factorisation)."""
+    `kernels.trapezoid.run_kernel`'s kernel is, and the factors `net` (one SuperLU factorisation)."""
     if case.network is None:
         raise ValueError(f"case {case.name} carries no network to keep sparse")
     net = lu_factors(case.network, case.E)
@@ -101,7 +102,7 @@ def prepare(case: Case, parallel: bool) -> tuple[np.ndarray, Callable, LUFactors
     return system, kernel, net
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _power(delta, pe, slope, system, net, n, scratch, work):
     """pe (n,) = P_e(delta) (p.u.) for angles delta (n,) rad, and slope (n,) = each machine's own
     dP_e,k / d delta_k (p.u./rad); scratch (3n,) and work (nb,) complex as `sparse_power`'s."""
@@ -117,19 +118,15 @@ def _power(delta, pe, slope, system, net, n, scratch, work):
         slope[k] = own - system[k, SELF] + (system[k, S_INF] * ck - system[k, C_INF] * sk)
 
 
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _failed(stats, step, iterations, t0, status):
     stats[0], stats[1], stats[2], stats[3] = step, iterations, 0, t0
     return status
 
 
-for _name in ("_self_impedances", "_power", "_failed"):
-    _name_for_cache(globals()[_name], f"trapezoid_sparse.{_name}")
-
-
-@njit(cache=True, error_model="numpy")
+@jit_function
 def _trajectory(ts, order, p1, system, net, options, out, col, stats):
-    """`trapezoid_kernels._trajectory` with the network kept sparse (module docstring): one
+    """`kernels.trapezoid.trajectory` with the network kept sparse (module docstring): one
     trajectory for generator-1 power p1 (p.u.), ceil(t_end / dt) equal steps to t_end =
     ts[order[-1]] (s), states at ts[order] into out[:, col, order] by cubic Hermite interpolation,
     `stats` (4,) its `STATS`; returns a status code."""
@@ -138,7 +135,7 @@ def _trajectory(ts, order, p1, system, net, options, out, col, stats):
     n_t = order.size
     stats[3] = math.nan
     y = np.empty(2 * n)
-    i_out = _start(y, ts, order, system, n, out, col)
+    i_out = start_trajectory(y, ts, order, system, n, out, col)
     t_end = ts[order[n_t - 1]]
     if t_end <= 0.0:
         return OK
@@ -191,7 +188,7 @@ def _trajectory(ts, order, p1, system, net, options, out, col, stats):
         _power(delta1, pe, slope, system, net, n, scratch, work)
         for k in range(n):
             a1[k] = (P[k] - d[k] * omega1[k] - pe[k]) / m[k]
-        i_out = _output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
+        i_out = hermite_output(ts, order, i_out, t0, t1, h, delta0, omega0, a0, delta1, omega1, a1, out, col)
         for k in range(n):
             delta0[k], omega0[k], a0[k] = delta1[k], omega1[k], a1[k]
     stats[0], stats[1], stats[2] = n_steps, iterations, 0
@@ -200,8 +197,6 @@ def _trajectory(ts, order, p1, system, net, options, out, col, stats):
             return NOT_FINITE
     return OK
 
-
-_name_for_cache(_trajectory, "trapezoid_sparse._trajectory")
 
 
 def _make_run(parallel: bool):
@@ -219,13 +214,13 @@ def _make_run(parallel: bool):
                 return out, stats, g, status[g]
         return out, stats, -1, OK
 
-    return _jit_variant(run, f"trapezoid_sparse_{int(parallel)}", parallel=parallel)
+    return jit_variant(run, f"trapezoid_sparse_{int(parallel)}", parallel=parallel)
 
 
 @functools.cache
 def run_kernel(parallel: bool):
     """The compiled integrator `(t, order, starts, P1, system, net, options, shared) -> (out, stats,
-    failed, status)`: `trapezoid_kernels.run_kernel`'s with `system` (n, 8) and `net` as the module
+    failed, status)`: `kernels.trapezoid.run_kernel`'s with `system` (n, 8) and `net` as the module
     docstring's. Compiled once for every n; `parallel`: groups over numba's threads (prange)."""
     return _make_run(parallel)
 
