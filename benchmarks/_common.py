@@ -6,7 +6,7 @@ Nothing here is a second implementation of a measurement. Timings call the adapt
 `solve` and `identify` on the harness's queries (`harness.suites.latency.queries`) and observations
 (`harness.suites.identification.pair_observations`); errors are the rows of the harness's suites
 (`harness.suites.accuracy.accuracy`, `harness.suites.identification.identification`, which compute
-them with `harness.metrics` against `systems.reference`); trained models go through the harness's
+them with `harness.measure.metrics` against `systems.reference`); trained models go through the harness's
 model cache (`harness.runner.fit_or_load`).
 
 Parameters: `case` is every forward case of the run's settings (`SETTINGS.cases`: the SMIB

@@ -150,7 +150,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from harness.timing import pin_threads
+    from harness.measure.timing import pin_threads
 
     if args.threads < 1:
         raise UsageError("swingbench run: --threads must be >= 1")

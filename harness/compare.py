@@ -157,7 +157,7 @@ def _spread(both) -> str:
 def _sigma(frames_a: dict, frames_b: dict) -> str:
     """The run-to-run spread of the two runs (`run_to_run_sigma`) beside the one the intervals
     assume (`RUN_TO_RUN`): "" without seed rows timed in both."""
-    from harness.paired import RUN_TO_RUN
+    from harness.measure.paired import RUN_TO_RUN
     from harness.verdict_table import run_to_run_sigma
 
     sigma, n = run_to_run_sigma(frames_a, frames_b)

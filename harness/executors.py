@@ -15,9 +15,9 @@ import sys
 from collections.abc import Iterator
 from typing import Any
 
+from harness.measure.timing import THREAD_ENV
 from harness.runner import Unit, inline, run_unit_in_worker
 from harness.runs import Settings
-from harness.timing import THREAD_ENV
 from harness.usage import UsageError
 
 __all__ = ["choose", "dask", "dask_client", "inline", "joblib"]

@@ -25,12 +25,12 @@ from dataclasses import replace
 from pathlib import Path
 
 from harness.isolation import OverLimit, call_isolated
+from harness.measure.timing import blas_threads, pinned_threads
 from harness.model_cache import fit_or_load
 from harness.plan import FIT, Unit, plan
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES
-from harness.timing import blas_threads, pinned_threads
 from harness.usage import EXIT_FAILED, raise_if_interrupted
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled

@@ -16,7 +16,7 @@ import pandas as pd
 from scipy import stats
 
 from harness.analysis import GRID_QUERY, POINT_QUERY, fmt, label, ok
-from harness.paired import (
+from harness.measure.paired import (
     CLASSICAL_FASTER,
     CONFIDENCE,
     NO_RIVAL,

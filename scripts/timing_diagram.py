@@ -16,7 +16,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyArrowPatch, Rectangle
 
-from harness.paired import CONFIDENCE, SAMPLE_S, TIE_FACTOR
+from harness.measure.paired import CONFIDENCE, SAMPLE_S, TIE_FACTOR
 from harness.runs import DEFAULT
 
 PINN, RIVAL, WARM = "#d1495b", "#30638e", "#bbbbbb"

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import THREE_MACHINES, check_points_as_solves, max_rel
 
-from harness import metrics
+from harness.measure import metrics
 from solvers import make_solver
 from solvers.base import SolveError
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid

@@ -12,11 +12,11 @@ import pytest
 
 import solvers
 from harness.cli import main
+from harness.measure.timing import time_call
 from harness.report import write_report
 from harness.runner import run_suites
 from harness.runs import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
 from harness.store import RowStore, atomic_write
-from harness.timing import time_call
 from solvers.base import AbstractSolver, SolveError
 from systems.cases import SMIB_INFERENCE
 

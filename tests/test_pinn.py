@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 
-from harness.metrics import rel_l2
+from harness.measure.metrics import rel_l2
 from solvers import SOLVERS, make_solver
 from solvers.base import NotFittedError
 from solvers.pinn import network

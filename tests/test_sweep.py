@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 
 from harness import sweep
+from harness.measure.timing import pinned_threads
 from harness.runner import Unit, run_unit_in_worker
 from harness.runs import Settings, SolverSpec
 from harness.store import RowStore
-from harness.timing import pinned_threads
 from solvers import SOLVERS
 from solvers.base import AbstractSolver
 from systems.cases import SMIB_INFERENCE

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import check_points_as_solves
 
-from harness import metrics
+from harness.measure import metrics
 from harness.runs import DEFAULT
 from solvers import make_solver
 from solvers.base import SolveError

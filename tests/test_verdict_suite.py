@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
+from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
 from harness.runs import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals, query_errors, verdict_queries

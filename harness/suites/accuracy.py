@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import metrics
 from harness.analysis import COI_DELTA
+from harness.measure import metrics
 from harness.runs import Settings
 from harness.suites._base import Suite
 from solvers.base import AbstractSolver

@@ -16,7 +16,7 @@ reference integrator).
 
 The CCT is the bracket's midpoint; a method whose trajectories are unstable at p1_min (or stable at
 p1_max) has no CCT inside the range (NaN, the row's `note` says which). The search is timed whole,
-warm, as the latency suite times a query (`harness.timing.time_call`; a search over
+warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
 `Settings.max_call_s` is timed once).
 
 Each row holds what its unit measures; the training cost of a surrogate is its unit's `fit` row,
@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.measure.timing import time_call
 from harness.runs import Settings
 from harness.suites._base import Suite
 from harness.suites._seeds import seed_models
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case
 from systems.model import relative_angles

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import metrics
+from harness.measure import metrics
+from harness.measure.timing import time_call
 from harness.runs import Settings
 from harness.suites._base import Suite
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case, case_record
 from systems.model import relative_angles

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from harness import metrics
 from harness.analysis import t1_column
+from harness.measure import metrics
+from harness.measure.timing import time_call
 from harness.runs import Settings
 from harness.suites._base import Suite
 from harness.suites.latency import T1_S, queries
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
