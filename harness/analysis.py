@@ -7,22 +7,20 @@ others, classical adapters, have seed -1. Every comparison is between rows of th
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import pandas as pd
 
+from harness.suites.accuracy import COI_DELTA
 from solvers import INTERFACE, LITERATURE_BASELINE
 
 __all__ = [
-    "COI_DELTA",
     "COMPILED",
     "GRID_QUERY",
     "LITERATURE",
     "POINT_QUERY",
     "PYTHON_DRIVEN",
     "RUNGS",
-    "T1_COLUMN",
     "break_even",
     "compiled",
     "crossover_t1",
@@ -38,7 +36,6 @@ __all__ = [
     "ok",
     "pareto_front",
     "seed_summary",
-    "t1_column",
     "time_at_accuracy",
     "trained",
     "verdict_rows",
@@ -176,15 +173,6 @@ RUNGS = (LITERATURE, PYTHON_DRIVEN, COMPILED)
 LITERATURE_SOLVER = LITERATURE_BASELINE  # looped, as MATLAB ode45 was in the paper's 28x and 87x
 
 
-T1_COLUMN = re.compile(r"point_t1=(?P<t1>[0-9.e+-]+)_median_s")
-
-
-def t1_column(t1: float) -> str:
-    """The work-precision column of the median single-point time (s) at `t1` (s), which compiled
-    adapters record at every t1 (`T1_COLUMN` reads it back)."""
-    return f"point_t1={t1:g}_median_s"
-
-
 def compiled(df: pd.DataFrame) -> pd.Series:
     """Rows of adapters whose queries run in compiled code (rows before the column: none)."""
     if "compiled" not in df:
@@ -213,11 +201,6 @@ def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
     if rung == COMPILED:
         return classical & compiled(df)
     raise ValueError(f"unknown rung {rung!r}; known: {', '.join(RUNGS)}")
-
-
-# The accuracy suite's quantity of the angles relative to the centre of inertia (systems without an
-# infinite bus); the verdicts of such a case compare at it (see `verdict_rows`).
-COI_DELTA = "delta - delta_COI"
 
 
 def verdict_rows(acc: pd.DataFrame) -> pd.DataFrame:

@@ -10,7 +10,6 @@ import numpy as np
 import pandas as pd
 
 from harness.analysis import (
-    COI_DELTA,
     GRID_QUERY,
     POINT_QUERY,
     break_even,
@@ -27,6 +26,7 @@ from harness.analysis import (
 )
 from harness.cct_table import CCT_TITLE, cct_table
 from harness.paper import paper_table
+from harness.suites.accuracy import COI_DELTA
 from harness.verdict import ladder_table
 from harness.verdict_table import RULE, verdict_table
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE

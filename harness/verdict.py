@@ -12,7 +12,6 @@ from harness.analysis import (
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,
-    T1_COLUMN,
     compiled,
     crossover_t1,
     fastest_classical,
@@ -24,6 +23,7 @@ from harness.analysis import (
     trained,
     verdict_rows,
 )
+from harness.suites.work_precision import T1_COLUMN
 
 __all__ = ["crossover", "ladder_queries", "ladder_rows", "ladder_table", "verdict_lines"]
 

@@ -12,7 +12,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from harness.analysis import COI_DELTA
 from harness.cct_plot import cct_plot
 from harness.cct_table import cct_headline
 from harness.labels import Labels
@@ -21,7 +20,7 @@ from harness.runner import run_unit
 from harness.runs import QUICK, SolverSpec
 from harness.sections import case_sections, suite_frames
 from harness.suites import SUITES
-from harness.suites.accuracy import accuracy
+from harness.suites.accuracy import COI_DELTA, accuracy
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from harness.tables import build_tables
 from solvers import SOLVERS

@@ -524,8 +524,7 @@ def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
 
 
 def test_work_precision_times_a_compiled_adapter_at_every_t1_once():
-    from harness.analysis import T1_COLUMN
-    from harness.suites.work_precision import work_precision
+    from harness.suites.work_precision import T1_COLUMN, work_precision
 
     if solvers.SOLVERS.get("numba-rk") is None:
         pytest.skip("numba not installed")

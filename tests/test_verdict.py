@@ -124,7 +124,8 @@ def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy(
     its classical rivals are judged by one measure, the COI-relative one when the rows hold it."""
     import pandas as pd
 
-    from harness.analysis import COI_DELTA, GRID_QUERY, ladder, verdict_rows
+    from harness.analysis import GRID_QUERY, ladder, verdict_rows
+    from harness.suites.accuracy import COI_DELTA
 
     base = {"case": "wscc9", "config": "default", "variant": "", "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "seed": 0, "trains": True}
