@@ -162,7 +162,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.isolation import Limits
     from harness.plan import plan
     from harness.provenance import metadata
-    from harness.report import write_report
+    from harness.report.files import write_report
     from harness.results_folder import interrupted_message, open_results
     from harness.runner import check_units, execute, outcome
     from harness.runs import (
@@ -279,7 +279,7 @@ def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results:
     pages = args.docs or (args.update_readme.parent / "docs" / "results" if args.update_readme else None)
     if pages is None:
         return
-    from harness.pages import readme_block, write_pages
+    from harness.report.pages import readme_block, write_pages
 
     write_pages(rows, meta, pages, results)
     if args.update_readme:
@@ -288,7 +288,7 @@ def _write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from harness.report import write_report
+    from harness.report.files import write_report
     from harness.store import RowStore
 
     if not args.directory.is_dir():

@@ -3,7 +3,7 @@ latency query, an accuracy quantity; `MEASURES`) for the same case and spec: the
 in each run and the ratio B / A (`queries_in_both`). Then, where both runs have verdict rows,
 every verdict of both and whether they agree.
 
-Each run's verdicts are its verdict suite's rows over seeds (`harness.verdict_table.verdicts`);
+Each run's verdicts are its verdict suite's rows over seeds (`harness.report.verdicts.verdicts`);
 two verdicts agree when their labels are the same, flip when they name opposite sides, and
 otherwise one of them is a tie. With `--update-readme`, the comparison replaces the README's
 section between `COMPARE_START` and `COMPARE_END`.
@@ -38,8 +38,8 @@ def add_parser(sub) -> None:
 
 
 def _frames(directory: Path) -> dict:
-    """The rows of the results folder `directory`, by suite (`harness.sections.suite_frames`)."""
-    from harness.sections import suite_frames
+    """The rows of the results folder `directory`, by suite (`harness.report.markdown.suite_frames`)."""
+    from harness.report.markdown import suite_frames
     from harness.store import RowStore
 
     if not directory.is_dir():
@@ -59,11 +59,11 @@ MEASURES = {"latency": (("query",), "median_s"), "accuracy": (("quantity", "agai
 
 def _medians(frames: dict, suite: str):
     """The median over seeds of `suite`'s measure for each (case, spec, query) of one run: a frame
-    of suite, case, configuration (`harness.analysis.label`), query, measure and median; the rows
+    of suite, case, configuration (`harness.report.frames.label`), query, measure and median; the rows
     without the measure (skipped, failed) left out."""
     import pandas as pd
 
-    from harness.analysis import label
+    from harness.report.frames import label
 
     names, measure = MEASURES[suite]
     df = frames.get(suite)
@@ -112,8 +112,8 @@ def _block(frames_a: dict, frames_b: dict, sources: str) -> str:
     verdicts where both runs have them; UsageError when they share neither."""
     import pandas as pd
 
-    from harness.labels import Labels
-    from harness.verdict_table import AGREE, FLIP, compare_runs, compare_table
+    from harness.report.labels import Labels
+    from harness.report.verdicts import AGREE, FLIP, compare_runs, compare_table
 
     frames = {suite: pd.concat([f[suite] for f in (frames_a, frames_b) if suite in f])
               for suite in {**frames_a, **frames_b}}
@@ -158,7 +158,7 @@ def _sigma(frames_a: dict, frames_b: dict) -> str:
     """The run-to-run spread of the two runs (`run_to_run_sigma`) beside the one the intervals
     assume (`RUN_TO_RUN`): "" without seed rows timed in both."""
     from harness.measure.paired import RUN_TO_RUN
-    from harness.verdict_table import run_to_run_sigma
+    from harness.report.verdicts import run_to_run_sigma
 
     sigma, n = run_to_run_sigma(frames_a, frames_b)
     if not n:
@@ -169,7 +169,7 @@ def _sigma(frames_a: dict, frames_b: dict) -> str:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from harness.readme import replace_section
-    from harness.verdict_table import FLIP, compare_runs
+    from harness.report.verdicts import FLIP, compare_runs
 
     start = args.update_readme.resolve().parent if args.update_readme else Path()
     frames_a, frames_b = _frames(args.run_a), _frames(args.run_b)

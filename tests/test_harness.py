@@ -13,7 +13,7 @@ import pytest
 import solvers
 from harness.cli import main
 from harness.measure.timing import time_call
-from harness.report import write_report
+from harness.report.files import write_report
 from harness.runner import run_suites
 from harness.runs import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
 from harness.store import RowStore, atomic_write
@@ -209,7 +209,7 @@ def test_cli_version_is_the_one_in_pyproject(capsys):
 
 
 def test_time_at_accuracy_interpolates_on_the_pareto_front():
-    from harness.analysis import break_even, pareto_front, time_at_accuracy
+    from harness.report.frames import break_even, pareto_front, time_at_accuracy
 
     errors = np.array([1e-3, 1e-5, 1e-7, 1e-6])
     seconds = np.array([0.01, 0.1, 1.0, 2.0])  # the last point is dominated by 1e-7 in 1.0 s
@@ -364,8 +364,8 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
     (0.001, "2x slower than best Python-driven (scipy-odeint [default])"),
 ])
 def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
-    from harness.paper import paper_table
-    from harness.sections import suite_frames
+    from harness.report.markdown import suite_frames
+    from harness.report.paper import paper_table
 
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "config": "default", "seed": 0, "trains": True}
@@ -386,8 +386,8 @@ def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
 def test_fastest_classical_includes_the_tolerance_sweep():
     """The rival of a PINN is the fastest classical option at least as accurate: a named config
     or any point of the work-precision sweep, for the grid and for the single-point query."""
-    from harness.analysis import GRID_QUERY, POINT_QUERY, fastest_classical
-    from harness.sections import suite_frames
+    from harness.report.frames import GRID_QUERY, POINT_QUERY, fastest_classical
+    from harness.report.markdown import suite_frames
 
     base = {"case": "smib-inference", "threads": 2, "status": "ok", "seed": -1}
     ode = {**base, "solver": "scipy-odeint", "config": "default", "variant": ""}
@@ -588,7 +588,7 @@ def test_cli_refuses_an_option_a_selected_case_or_this_machine_cannot_take_befor
 
 
 def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
-    from harness.sections import work_minutes
+    from harness.report.markdown import work_minutes
 
     unit = {"suite": "latency", "solver": "a", "config": "default", "variant": "", "seed": -1}
     rows = [{**unit, "case": "x", "work_s": 60.0}, {**unit, "case": "x", "work_s": 60.0},  # one unit, two rows
@@ -602,7 +602,7 @@ def test_work_minutes_sums_each_unit_once_and_says_when_some_have_no_time():
 def test_rows_of_runs_before_the_trains_column_are_read_by_their_seeds():
     """Runs before rows declared `trains` gave trained adapters seeds >= 0 and the others -1: their
     tables (results/full-identification) must read as they did."""
-    from harness.analysis import trained
+    from harness.report.frames import trained
 
     old = pd.DataFrame({"solver": ["jax-pinn", "numba-rk"], "seed": [0, -1]})
     assert trained(old).tolist() == [True, False]

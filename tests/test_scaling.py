@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
-from harness.scaling_tables import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
-from harness.sections import suite_frames
+from harness.report.markdown import suite_frames
+from harness.report.scaling import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
 from harness.store import RowStore
 
 TINY = ["--suite", "scaling", "--case", "smib-inference", "wscc9", "--solver", "scipy-odeint", "--config", "default",

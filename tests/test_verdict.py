@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.analysis import (
+from harness.report.files import write_report
+from harness.report.frames import (
     COMPILED,
     GRID_QUERY,
     LITERATURE,
@@ -17,9 +18,8 @@ from harness.analysis import (
     crossover_t1,
     ladder,
 )
-from harness.report import write_report
-from harness.sections import LADDER_HEADING, suite_frames
-from harness.verdict import crossover, ladder_table, verdict_lines
+from harness.report.ladder import crossover, ladder_table, verdict_lines
+from harness.report.markdown import LADDER_HEADING, suite_frames
 
 BASE = {"case": "smib-inference", "threads": 2, "status": "ok"}
 PINN = {**BASE, "solver": "toy-pinn", "config": "default", "variant": "", "trains": True, "compiled": False}
@@ -124,7 +124,7 @@ def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy(
     its classical rivals are judged by one measure, the COI-relative one when the rows hold it."""
     import pandas as pd
 
-    from harness.analysis import GRID_QUERY, ladder, verdict_rows
+    from harness.report.frames import GRID_QUERY, ladder, verdict_rows
     from harness.suites.accuracy import COI_DELTA
 
     base = {"case": "wscc9", "config": "default", "variant": "", "status": "ok"}

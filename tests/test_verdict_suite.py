@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
+from harness.report.verdicts import compare_runs, verdicts
 from harness.runs import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals, query_errors, verdict_queries
 from harness.suites.verdict import query_paths, verdict
-from harness.verdict_table import compare_runs, verdicts
 from solvers import SOLVERS, make_solver
 from systems.cases import SMIB_INFERENCE as CASE
 from tests.conftest import require

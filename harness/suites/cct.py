@@ -21,7 +21,7 @@ warm, as the latency suite times a query (`harness.measure.timing.time_call`; a 
 
 Each row holds what its unit measures; the training cost of a surrogate is its unit's `fit` row,
 and the break-even, which needs the other adapters' searches, is computed by the report
-(`harness.cct_table`).
+(`harness.report.cct`).
 """
 
 from __future__ import annotations
@@ -135,7 +135,7 @@ def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
 
 
 def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
-    """The figure's data (`harness.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
+    """The figure's data (`harness.report.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
     `TRAJECTORY_OFFSET_S` either side of the reference CCT `ref_cct` (s), clamped to the case's range;
     `traj_t` (n_t,) s; `traj_pred` and `traj_ref` (2, n_t, n): the adapter's and the reference's
     angles from the centre of inertia (rad), as lists. Not timed."""

@@ -1,6 +1,6 @@
 """Names a reader can read: how tables, plot legends and verdicts name a configuration.
 
-The analysis keys a spec by `harness.analysis.label`, "solver [config, k=v,k=v]" with the rows'
+The analysis keys a spec by `harness.report.frames.label`, "solver [config, k=v,k=v]" with the rows'
 full variant (and, for a point of a tolerance sweep, its setting: "..., rtol=1e-05, atol=1e-08]");
 the rows and the CSVs keep that. What a reader sees is `Labels`: "solver config · option · ...",
 the options written as words ("numba query", "parallel", "dt=0.05"), without those that every row
@@ -59,7 +59,7 @@ def _words(item: str) -> str:
 class Labels:
     """The readable names of the specs in `frames` (suite -> rows, or one frame of rows).
 
-    `labels(key)` renders one key of `harness.analysis.label`; `labels.text(s)` every key in a
+    `labels(key)` renders one key of `harness.report.frames.label`; `labels.text(s)` every key in a
     sentence or cell; `labels.table(df)` every text cell of a table; `labels.note()` says which
     options were left out. Options are left out per (solver, config) when every row of it in
     `frames` has them, with the same value."""

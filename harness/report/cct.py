@@ -22,8 +22,8 @@ import math
 
 import pandas as pd
 
-from harness.analysis import break_even, fmt, label, latency_cell, ok, trained
 from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
+from harness.report.frames import break_even, fmt, label, latency_cell, ok, trained
 
 __all__ = ["CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_table"]
 

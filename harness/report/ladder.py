@@ -1,5 +1,5 @@
 """Who wins which query: the ladder table, the single-point crossover in t1, and the verdict
-sentences of a run. Pure pandas on the rows of one run (see `harness.analysis.ladder`)."""
+sentences of a run. Pure pandas on the rows of one run (see `harness.report.frames.ladder`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from harness.analysis import (
+from harness.report.frames import (
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,

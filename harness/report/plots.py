@@ -1,7 +1,7 @@
 """Plots of a run (PNG and PDF): the paper's figure 3, work-precision, latency against t1,
 identification error per pair, a fault case's trajectories either side of its CCT
-(`harness.cct_plot`). Each function takes the suite frames and the names of their
-configurations (`harness.labels.Labels`) and returns a figure or None."""
+(`harness.report.cct_plot`). Each function takes the suite frames and the names of their
+configurations (`harness.report.labels.Labels`) and returns a figure or None."""
 
 from __future__ import annotations
 
@@ -15,12 +15,12 @@ import numpy as np
 import pandas as pd
 from matplotlib.lines import Line2D
 
-from harness.analysis import identification_data, label, ok, trained
-from harness.cct_plot import cct_plot
-from harness.labels import Labels
-from harness.plot_style import legend_beside as _legend_beside
-from harness.plot_style import palette as _palette
-from harness.verdict_table import headline, verdicts
+from harness.report.cct_plot import cct_plot
+from harness.report.frames import identification_data, label, ok, trained
+from harness.report.labels import Labels
+from harness.report.plot_style import legend_beside as _legend_beside
+from harness.report.plot_style import palette as _palette
+from harness.report.verdicts import headline, verdicts
 from systems.cases import CASES, standard_grid
 
 __all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
@@ -124,8 +124,8 @@ def latency_t1_plot(frames: dict, names: Labels):
 
 def crossover_plot(frames: dict, names: Labels):
     """Single-point cost against t1 for the fastest PINN path and the fastest compiled classical
-    option at least as accurate (`harness.verdict.crossover`), with the crossover if there is one."""
-    from harness.verdict import crossover
+    option at least as accurate (`harness.report.ladder.crossover`), with the crossover if there is one."""
+    from harness.report.ladder import crossover
 
     x = crossover(frames)
     if x is None:
@@ -185,7 +185,7 @@ def identification_plot(frames: dict, names: Labels):
 
 def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax, names: Labels) -> None:
     """`column` against N, one line per adapter spec, log-log; the fitted slope in the legend."""
-    from harness.scaling_tables import log_log_slope
+    from harness.report.scaling import log_log_slope
 
     colours = _palette(frame["label"])
     for name, g in frame.groupby("label", sort=False):

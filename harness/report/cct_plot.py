@@ -7,9 +7,9 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-from harness.analysis import label, ok, trained
-from harness.labels import Labels
-from harness.plot_style import palette
+from harness.report.frames import label, ok, trained
+from harness.report.labels import Labels
+from harness.report.plot_style import palette
 from systems.stability import ANGLE_LIMIT
 
 __all__ = ["cct_plot"]

@@ -206,7 +206,7 @@ def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
 def verdict_rows(acc: pd.DataFrame) -> pd.DataFrame:
     """The accuracy rows every verdict compares at: delta against the reference, or, when the rows
     hold it (a case without an infinite bus), the angles relative to the centre of inertia, the
-    measure the work-precision points of such a case are read at (`harness.report.case_sections`):
+    measure the work-precision points of such a case are read at (`harness.report.files.case_sections`):
     a PINN and its classical rivals judged by one measure."""
     acc = acc[acc["against"] == "reference"]
     quantity = COI_DELTA if (acc["quantity"] == COI_DELTA).any() else "delta"

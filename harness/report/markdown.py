@@ -1,5 +1,5 @@
-"""The report's text, shared by `tables.md` (`harness.report`) and the documentation pages
-(`harness.pages`): the rows as frames by suite (`suite_frames`) and by case (`case_sections`), the
+"""The report's text, shared by `tables.md` (`harness.report.files`) and the documentation pages
+(`harness.report.pages`): the rows as frames by suite (`suite_frames`) and by case (`case_sections`), the
 run's lines (`header`, `work_minutes`), a case's section (`section_markdown`: the options its
 names leave out, its verdicts, its tables) and the scaling section (`scaling_markdown`).
 """
@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import pandas as pd
 
-from harness.labels import Labels
-from harness.scaling_tables import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
+from harness.report.labels import Labels
+from harness.report.ladder import verdict_lines
+from harness.report.scaling import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import unit_key
 from harness.suites import identification_case
-from harness.verdict import verdict_lines
 from systems.cases import CASES
 
 __all__ = ["LADDER_HEADING", "case_sections", "header", "scaling_labels", "scaling_markdown", "section_markdown",
@@ -99,7 +99,7 @@ def work_minutes(rows: list[dict]) -> str:
 def section_markdown(name: str, frames: dict, tables: dict, level: str = "###", heading: str | None = None) -> str:
     """A case's section: its heading (`heading`, default "Case <name>"), the options its names leave
     out, its verdicts and every table of `tables` (`build_tables`), each configuration named by
-    `harness.labels.Labels` of the case's rows."""
+    `harness.report.labels.Labels` of the case's rows."""
     labels = Labels(frames)
     return (f"{level[:-1]} {heading or f'Case {name}'}\n\n" + verdict_markdown(frames, labels, level)
             + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"

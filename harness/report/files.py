@@ -2,7 +2,7 @@
 
 Nothing here measures anything: every figure comes from the rows of one run, so `swingbench
 report DIR` re-renders the same tables and plots from `DIR/rows.jsonl`. The tables are built by
-`harness.tables`, the Markdown text by `harness.sections`; this module writes the files.
+`harness.report.tables`, the Markdown text by `harness.report.markdown`; this module writes the files.
 """
 
 from __future__ import annotations
@@ -12,10 +12,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.labels import Labels
-from harness.plots import SCALING_PLOTS
-from harness.scaling_tables import scaling_frame
-from harness.sections import (
+from harness.report.labels import Labels
+from harness.report.ladder import ladder_rows
+from harness.report.markdown import (
     case_sections,
     header,
     scaling_labels,
@@ -24,9 +23,10 @@ from harness.sections import (
     suite_frames,
     work_minutes,
 )
+from harness.report.plots import SCALING_PLOTS
+from harness.report.scaling import scaling_frame
+from harness.report.tables import build_tables
 from harness.store import atomic_write
-from harness.tables import build_tables
-from harness.verdict import ladder_rows
 
 __all__ = ["write_report"]
 
@@ -56,7 +56,7 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
     atomic_write(out_dir / "metadata.json", json.dumps(meta, indent=2, default=str))
     figures = []
     if plots:
-        from harness.plots import PLOTS, VERDICT_PLOTS, make_plots
+        from harness.report.plots import PLOTS, VERDICT_PLOTS, make_plots
 
         _remove_old_plots(out_dir, (*PLOTS, *SCALING_PLOTS, *VERDICT_PLOTS))
         for name, own, _ in sections:

@@ -6,7 +6,7 @@ import math
 
 import pandas as pd
 
-from harness.analysis import (
+from harness.report.frames import (
     GRID_QUERY,
     POINT_QUERY,
     RUNGS,

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from harness.analysis import break_even, fmt, label, ok, trained
+from harness.report.frames import break_even, fmt, label, ok, trained
 
 __all__ = ["COSTS", "LARGE_N_POINTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_frame",
            "scaling_table", "status_by_n"]

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from harness.analysis import (
+from harness.report.cct import CCT_TITLE, cct_table
+from harness.report.frames import (
     GRID_QUERY,
     POINT_QUERY,
     break_even,
@@ -24,11 +25,10 @@ from harness.analysis import (
     ok,
     trained,
 )
-from harness.cct_table import CCT_TITLE, cct_table
-from harness.paper import paper_table
+from harness.report.ladder import ladder_table
+from harness.report.paper import paper_table
+from harness.report.verdicts import RULE, verdict_table
 from harness.suites.accuracy import COI_DELTA
-from harness.verdict import ladder_table
-from harness.verdict_table import RULE, verdict_table
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from systems.reference import OFF_TRAINING, STABLE_CLEARING
 

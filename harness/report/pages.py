@@ -13,10 +13,9 @@ import os
 import shutil
 from pathlib import Path
 
-from harness.cct_table import CCT_HEADLINE, cct_headline
-from harness.labels import Labels
-from harness.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
-from harness.sections import (
+from harness.report.cct import CCT_HEADLINE, cct_headline
+from harness.report.labels import Labels
+from harness.report.markdown import (
     case_sections,
     header,
     scaling_markdown,
@@ -25,9 +24,10 @@ from harness.sections import (
     verdict_markdown,
     work_minutes,
 )
+from harness.report.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
+from harness.report.tables import build_tables
+from harness.report.verdicts import RULE, headline_table
 from harness.store import atomic_write
-from harness.tables import build_tables
-from harness.verdict_table import RULE, headline_table
 
 __all__ = ["GENERATED", "readme_block", "write_pages"]
 
@@ -41,7 +41,7 @@ def _source(results: Path | str, start: Path | str = ".") -> str:
 
 def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: str = "###") -> str:
     """The run's line and wall time, the verdict table (verdict suite) if the run has one, the CCT
-    headline (`harness.cct_table.cct_headline`) if the run has cct rows, then per
+    headline (`harness.report.cct.cct_headline`) if the run has cct rows, then per
     case a heading of `level` that links its page (`pages`: the pages' folder relative to where the
     block is read, "" beside them), the options its names leave out and, only in a run without
     verdicts, the latency suite's single-timing sentences; `source` names the rows."""

@@ -15,7 +15,6 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from harness.analysis import GRID_QUERY, POINT_QUERY, fmt, label, ok
 from harness.measure.paired import (
     CLASSICAL_FASTER,
     CONFIDENCE,
@@ -25,6 +24,7 @@ from harness.measure.paired import (
     TIE_FACTOR,
     ratio_interval,
 )
+from harness.report.frames import GRID_QUERY, POINT_QUERY, fmt, label, ok
 
 __all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "run_to_run_sigma",
            "verdict_table", "verdicts"]
