@@ -38,8 +38,8 @@ def add_parser(sub) -> None:
 
 
 def _frames(directory: Path) -> dict:
-    """The rows of the results folder `directory`, by suite (`harness.report.markdown.suite_frames`)."""
-    from harness.report.markdown import suite_frames
+    """The rows of the results folder `directory`, by suite (`harness.report.frames.suite_frames`)."""
+    from harness.report.frames import suite_frames
     from harness.store import RowStore
 
     if not directory.is_dir():

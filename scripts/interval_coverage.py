@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.measure.paired import RUN_TO_RUN, ratio_interval, verdict_label
-from harness.report.markdown import suite_frames
+from harness.report.frames import suite_frames
 from harness.report.verdicts import AGREE, FLIP, compare_runs, run_to_run_sigma
 from harness.store import RowStore
 

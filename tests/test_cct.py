@@ -15,8 +15,8 @@ import pytest
 from harness.plan import plan
 from harness.report.cct import cct_headline
 from harness.report.cct_plot import cct_plot
+from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
-from harness.report.markdown import case_sections, suite_frames
 from harness.report.tables import build_tables
 from harness.runner import run_unit
 from harness.runs import QUICK, SolverSpec

@@ -209,7 +209,7 @@ def test_cli_version_is_the_one_in_pyproject(capsys):
 
 
 def test_time_at_accuracy_interpolates_on_the_pareto_front():
-    from harness.report.frames import break_even, pareto_front, time_at_accuracy
+    from harness.report.speedups import break_even, pareto_front, time_at_accuracy
 
     errors = np.array([1e-3, 1e-5, 1e-7, 1e-6])
     seconds = np.array([0.01, 0.1, 1.0, 2.0])  # the last point is dominated by 1e-7 in 1.0 s
@@ -364,7 +364,7 @@ def test_noise_draws_repeat_each_noisy_identification_and_the_table_counts_cover
     (0.001, "2x slower than best Python-driven (scipy-odeint [default])"),
 ])
 def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
-    from harness.report.markdown import suite_frames
+    from harness.report.frames import suite_frames
     from harness.report.paper import paper_table
 
     base = {"case": "smib-inference", "variant": "", "threads": 2, "status": "ok"}
@@ -386,8 +386,8 @@ def test_paper_table_says_who_wins_at_matched_accuracy(classical_s, verdict):
 def test_fastest_classical_includes_the_tolerance_sweep():
     """The rival of a PINN is the fastest classical option at least as accurate: a named config
     or any point of the work-precision sweep, for the grid and for the single-point query."""
-    from harness.report.frames import GRID_QUERY, POINT_QUERY, fastest_classical
-    from harness.report.markdown import suite_frames
+    from harness.report.frames import suite_frames
+    from harness.report.ladder import GRID_QUERY, POINT_QUERY, fastest_classical
 
     base = {"case": "smib-inference", "threads": 2, "status": "ok", "seed": -1}
     ode = {**base, "solver": "scipy-odeint", "config": "default", "variant": ""}

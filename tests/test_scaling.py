@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
-from harness.report.markdown import suite_frames
+from harness.report.frames import suite_frames
 from harness.report.scaling import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
 from harness.store import RowStore
 

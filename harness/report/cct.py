@@ -4,7 +4,7 @@ headline per fault case and PINN (`cct_headline`, the README's and the results i
 Within a case, a surrogate's rival is the fastest classical search whose CCT is at least as close
 to the reference's as the surrogate's, or within the bracket (1 ms) when the surrogate is: the
 bracket is the resolution every search narrows to. Break-even N* = training / (rival's search -
-surrogate's search) (`analysis.break_even`): the CCT searches after which training and N*
+surrogate's search) (`speedups.break_even`): the CCT searches after which training and N*
 surrogate searches cost no more than N* rival searches ("never" when the surrogate's search is not
 faster). A surrogate trained on one contingency answers that contingency: it pays off on its own
 only for N* <= 1.
@@ -23,7 +23,9 @@ import math
 import pandas as pd
 
 from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
-from harness.report.frames import break_even, fmt, label, latency_cell, ok, trained
+from harness.report.format import fmt, latency_cell
+from harness.report.frames import label, ok, trained
+from harness.report.speedups import break_even
 
 __all__ = ["CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_table"]
 

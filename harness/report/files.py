@@ -12,17 +12,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
 from harness.report.ladder import ladder_rows
-from harness.report.markdown import (
-    case_sections,
-    header,
-    scaling_labels,
-    scaling_markdown,
-    section_markdown,
-    suite_frames,
-    work_minutes,
-)
+from harness.report.markdown import header, scaling_labels, scaling_markdown, section_markdown, work_minutes
 from harness.report.plots import SCALING_PLOTS
 from harness.report.scaling import scaling_frame
 from harness.report.tables import build_tables

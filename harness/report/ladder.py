@@ -1,5 +1,7 @@
-"""Who wins which query: the ladder table, the single-point crossover in t1, and the verdict
-sentences of a run. Pure pandas on the rows of one run (see `harness.report.frames.ladder`)."""
+"""Who wins which query. The verdict ladder (`ladder`): for each PINN spec, its error and query
+time, and on each rung (`RUNGS`) the fastest classical option at least as accurate
+(`fastest_classical`); the ladder table, the single-point crossover in t1 (`crossover`) and the
+verdict sentences of a run (`verdict_lines`). Pure pandas on the rows of one run."""
 
 from __future__ import annotations
 
@@ -8,24 +10,110 @@ import math
 import numpy as np
 import pandas as pd
 
-from harness.report.frames import (
-    GRID_QUERY,
-    POINT_QUERY,
-    RUNGS,
-    compiled,
-    crossover_t1,
-    fastest_classical,
-    first_seed,
-    fmt,
-    label,
-    ladder,
-    ok,
-    trained,
-    verdict_rows,
-)
+from harness.report.format import fmt
+from harness.report.frames import compiled, does_work, first_seed, label, ok, trained
+from harness.report.speedups import crossover_t1
+from harness.suites.accuracy import COI_DELTA
 from harness.suites.work_precision import T1_COLUMN
+from solvers import LITERATURE_BASELINE
 
-__all__ = ["crossover", "ladder_queries", "ladder_rows", "ladder_table", "verdict_lines"]
+__all__ = ["COMPILED", "GRID_QUERY", "LITERATURE", "POINT_QUERY", "PYTHON_DRIVEN", "RUNGS", "crossover",
+           "fastest_classical", "ladder", "ladder_queries", "ladder_rows", "ladder_table", "verdict_lines",
+           "verdict_rows"]
+
+
+# The latency suite's names of the paper's two timed queries; the work-precision suite times the first.
+GRID_QUERY, POINT_QUERY = "grid 100x201", "single point t1=10 s"
+
+
+# The rungs of the verdict ladder: which classical options each one may pick from.
+LITERATURE = "literature baseline (scipy RK45, one solve per P1)"
+PYTHON_DRIVEN = "best Python-driven classical"
+COMPILED = "best compiled classical"
+RUNGS = (LITERATURE, PYTHON_DRIVEN, COMPILED)
+LITERATURE_SOLVER = LITERATURE_BASELINE  # looped, as MATLAB ode45 was in the paper's 28x and 87x
+
+
+def _on_rung(df: pd.DataFrame, rung: str | None) -> pd.Series:
+    """Classical rows that rung `rung` may pick (None: every classical row)."""
+    classical = ~trained(df) & does_work(df)
+    if rung is None:
+        return classical
+    if rung == LITERATURE:
+        return classical & (df["solver"] == LITERATURE_SOLVER) & (df["variant"].fillna("") == "")
+    if rung == PYTHON_DRIVEN:
+        return classical & ~compiled(df)
+    if rung == COMPILED:
+        return classical & compiled(df)
+    raise ValueError(f"unknown rung {rung!r}; known: {', '.join(RUNGS)}")
+
+
+def verdict_rows(acc: pd.DataFrame) -> pd.DataFrame:
+    """The accuracy rows every verdict compares at: delta against the reference, or, when the rows
+    hold it (a case without an infinite bus), the angles relative to the centre of inertia, the
+    measure the work-precision points of such a case are read at (`harness.report.frames.case_sections`):
+    a PINN and its classical rivals judged by one measure."""
+    acc = acc[acc["against"] == "reference"]
+    quantity = COI_DELTA if (acc["quantity"] == COI_DELTA).any() else "delta"
+    return acc[acc["quantity"] == quantity]
+
+
+def fastest_classical(frames: dict, query: str, max_rel_l2: float, rung: str | None = None
+                      ) -> tuple[str, float] | None:
+    """The fastest classical option for `query` whose delta rel. L2 is at most `max_rel_l2`:
+    (label, median seconds), or None. Candidates: each classical spec of the accuracy and latency
+    suites and, for the grid and the t1 = 10 s query, each point of the work-precision sweeps
+    (labelled with its setting), so that a PINN is compared with the strongest classical option
+    measured; `rung` restricts them to one rung of the ladder (`RUNGS`; None: all)."""
+    candidates: list[tuple[str, float]] = []
+    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if not acc.empty and not lat.empty:
+        acc = verdict_rows(acc)
+        acc = acc[_on_rung(acc, rung)]
+        good = set(label(acc[acc["rel_l2"] <= max_rel_l2]))
+        lat = lat[(lat["query"] == query) & _on_rung(lat, rung)]
+        lat = lat.assign(label=label(lat))
+        candidates += [(name, float(s)) for name, s in zip(lat["label"], lat["median_s"]) if name in good]
+    wp = ok(frames.get("work_precision"))
+    column = {GRID_QUERY: "median_s", POINT_QUERY: "point_median_s"}.get(query)
+    if column in wp:  # rows of runs before the point timing have no point_median_s
+        wp = wp[_on_rung(wp, rung) & (wp["rel_l2_delta"] <= max_rel_l2) & wp[column].notna()]
+        for (_, row), name in zip(wp.iterrows(), label(wp)):
+            setting = row.get("setting")
+            if not isinstance(setting, str):  # runs before the column: tolerance sweeps only
+                setting = f"rtol={row['rtol']:g}, atol={row['atol']:g}" if pd.notna(row.get("rtol")) else ""
+            if setting:
+                candidates.append((f"{name[:-1]}, {setting}]", float(row[column])))
+    return min(candidates, key=lambda c: c[1]) if candidates else None
+
+
+def ladder(frames: dict, query: str) -> pd.DataFrame:
+    """The verdict ladder of `query`: one row per PINN spec (configuration and query path, first
+    seed): its delta rel. L2 on the grid, its query time, and for each rung of `RUNGS` the
+    fastest classical option of that rung at least as accurate, its time and the PINN's speed-up
+    (classical / PINN time; > 1: the PINN is faster; NaN when the rung has nothing as accurate)."""
+    acc, lat = ok(frames.get("accuracy")), ok(frames.get("latency"))
+    if acc.empty or lat.empty:
+        return pd.DataFrame()
+    acc = verdict_rows(acc)
+    acc = first_seed(acc[trained(acc)])
+    error = dict(zip(label(acc), acc["rel_l2"]))
+    lat = first_seed(lat[(lat["query"] == query) & trained(lat)])
+    fit = first_seed(ok(frames.get("fit")))
+    fit_s = dict(zip(label(fit), fit["fit_s"])) if not fit.empty else {}
+    rows = []
+    for name, pinn_s in zip(label(lat), lat["median_s"]):
+        err = error.get(name, float("nan"))
+        row = {"query": query, "pinn": name, "pinn_rel_l2": err, "pinn_s": float(pinn_s),
+               "fit_s": fit_s.get(name, float("nan"))}
+        for rung in RUNGS:
+            best = fastest_classical(frames, query, err, rung) if not math.isnan(err) else None
+            row[f"{rung}: option"] = best[0] if best else "none as accurate"
+            row[f"{rung}: s"] = best[1] if best else float("nan")
+            row[f"{rung}: speedup"] = best[1] / pinn_s if best else float("nan")
+        rows.append(row)
+    return pd.DataFrame(rows)
+
 
 RUNG_TITLES = dict(zip(RUNGS, ("literature baseline: scipy RK45 looped, as ode45 in the paper",
                                "best Python-driven classical", "best compiled classical")))
@@ -52,7 +140,7 @@ def _cell(row: pd.Series, rung: str) -> str:
 
 
 def ladder_rows(frames: dict, fastest_per_config: bool = True) -> pd.DataFrame:
-    """`analysis.ladder` of every ladder query, one frame; with `fastest_per_config`, of each PINN
+    """`ladder` of every ladder query, one frame; with `fastest_per_config`, of each PINN
     configuration only its fastest spec (backend and query path) per query."""
     steps = [ladder(frames, query) for query in ladder_queries(frames)]
     steps = pd.concat([s for s in steps if not s.empty], ignore_index=True) if any(not s.empty for s in steps) \

@@ -1,7 +1,7 @@
 """The report's text, shared by `tables.md` (`harness.report.files`) and the documentation pages
-(`harness.report.pages`): the rows as frames by suite (`suite_frames`) and by case (`case_sections`), the
-run's lines (`header`, `work_minutes`), a case's section (`section_markdown`: the options its
-names leave out, its verdicts, its tables) and the scaling section (`scaling_markdown`).
+(`harness.report.pages`): the run's lines (`header`, `work_minutes`), a case's section
+(`section_markdown`: the options its names leave out, its verdicts, its tables) and the scaling
+section (`scaling_markdown`).
 """
 
 from __future__ import annotations
@@ -12,61 +12,9 @@ from harness.report.labels import Labels
 from harness.report.ladder import verdict_lines
 from harness.report.scaling import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import unit_key
-from harness.suites import identification_case
-from systems.cases import CASES
 
-__all__ = ["LADDER_HEADING", "case_sections", "header", "scaling_labels", "scaling_markdown", "section_markdown",
-           "suite_frames", "verdict_markdown", "work_minutes"]
-
-
-def _identification_case(name: str, identified: set[str]) -> str:
-    """The case identification measures for forward case `name`: the planner's rule
-    (`harness.suites.identification_case`, from the case's kind) on the registered case. A case
-    that has identification rows of its own (`identified`) is its own identification case by that
-    rule, and an unregistered name is taken as its own: then no network is built to say so."""
-    if name in identified or name not in CASES:
-        return name
-    return identification_case(CASES[name]).name
-
-
-def case_sections(frames: dict[str, pd.DataFrame]) -> list[tuple[str, dict[str, pd.DataFrame]]]:
-    """The frames of each forward case, in run order: its rows of every suite, and the
-    identification rows of its identification case (the SMIB's own case for a SMIB). In a case
-    without an infinite bus (any work-precision row with `rel_l2_delta_coi`) the verdicts compare
-    at the accuracy of the angles relative to the centre of inertia: `rel_l2_delta` is replaced by
-    it there (absolute angles drift together; their error says little about the swings)."""
-    names: list[str] = []
-    for suite, df in frames.items():
-        if suite not in ("identification", "scaling", "fit") and "case" in df:
-            names += [n for n in df["case"].dropna().unique() if n not in names]
-    ident = frames.get("identification")
-    identified = set(ident["case"].dropna()) if ident is not None and "case" in ident else set()
-    if ident is not None and "case" in ident:
-        covered = {_identification_case(n, identified) for n in names}
-        names += [n for n in ident["case"].dropna().unique() if n not in covered and n not in names]
-    sections = []
-    for name in names:
-        own = {}
-        for suite, df in frames.items():
-            if suite == "scaling":  # across cases: its own section (`scaling_markdown`)
-                continue
-            case = _identification_case(name, identified) if suite == "identification" else name
-            part = df[df["case"] == case].dropna(axis=1, how="all").reset_index(drop=True) if "case" in df else df
-            if suite == "work_precision" and "rel_l2_delta_coi" in part:
-                part = part.assign(rel_l2_delta=part["rel_l2_delta_coi"].fillna(part["rel_l2_delta"]))
-            if not part.empty:
-                own[suite] = part
-        sections.append((name, own))
-    return sections
-
-
-def suite_frames(rows: list[dict]) -> dict[str, pd.DataFrame]:
-    """The rows of each suite, in run order, as a frame without the columns none of them fills."""
-    frame = pd.DataFrame(rows)
-    if frame.empty:
-        return {}
-    return {suite: g.dropna(axis=1, how="all").reset_index(drop=True)
-            for suite, g in frame.groupby("suite", sort=False)}
+__all__ = ["LADDER_HEADING", "header", "scaling_labels", "scaling_markdown", "section_markdown", "verdict_markdown",
+           "work_minutes"]
 
 
 def header(meta: dict) -> str:

@@ -14,16 +14,9 @@ import shutil
 from pathlib import Path
 
 from harness.report.cct import CCT_HEADLINE, cct_headline
+from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
-from harness.report.markdown import (
-    case_sections,
-    header,
-    scaling_markdown,
-    section_markdown,
-    suite_frames,
-    verdict_markdown,
-    work_minutes,
-)
+from harness.report.markdown import header, scaling_markdown, section_markdown, verdict_markdown, work_minutes
 from harness.report.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
 from harness.report.tables import build_tables
 from harness.report.verdicts import RULE, headline_table

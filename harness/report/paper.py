@@ -6,19 +6,9 @@ import math
 
 import pandas as pd
 
-from harness.report.frames import (
-    GRID_QUERY,
-    POINT_QUERY,
-    RUNGS,
-    does_work,
-    first_seed,
-    fmt,
-    identification_data,
-    label,
-    ladder,
-    ok,
-    trained,
-)
+from harness.report.format import fmt
+from harness.report.frames import does_work, first_seed, identification_data, label, ok, trained
+from harness.report.ladder import GRID_QUERY, POINT_QUERY, RUNGS, ladder
 from solvers.pinn.config import DEFAULT_CONFIG, PAPER_CONFIG, PAPER_TWO_OUTPUTS_CONFIG
 from systems.reference import PAPER_DATA, REFERENCE_DATA
 
@@ -154,7 +144,7 @@ def _identification_rows(frames: dict) -> list[dict]:
 
 
 def ladder_summary(rungs: pd.Series) -> str:
-    """"PINN time; vs <rung>: <speed-up> ..." for one row of `analysis.ladder`."""
+    """"PINN time; vs <rung>: <speed-up> ..." for one row of `ladder.ladder`."""
     parts = []
     for rung, short in zip(RUNGS, ("literature baseline", "best Python-driven", "best compiled")):
         speedup = rungs[f"{rung}: speedup"]

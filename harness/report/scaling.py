@@ -7,7 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from harness.report.frames import break_even, fmt, label, ok, trained
+from harness.report.format import fmt
+from harness.report.frames import label, ok, trained
+from harness.report.speedups import break_even
 
 __all__ = ["COSTS", "LARGE_N_POINTS", "break_even_by_n", "exponents", "log_log_slope", "scaling_frame",
            "scaling_table", "status_by_n"]
@@ -120,7 +122,7 @@ def status_by_n(frames: dict[str, pd.DataFrame]) -> pd.DataFrame:
 def break_even_by_n(frame: pd.DataFrame) -> pd.DataFrame:
     """Per PINN spec and N: the fastest classical adapter at least as accurate there (grid query
     time per trajectory) and the number of trajectories after which the PINN's preparation pays
-    off against it (`analysis.break_even`, preparation minus the classical one's); "never" when
+    off against it (`speedups.break_even`, preparation minus the classical one's); "never" when
     the PINN is not faster per trajectory, and no rival when no classical adapter is as accurate;
     none either for a PINN at rel. L2 >= `UNCONVERGED_REL_L2` ("not converged")."""
     if frame.empty:

@@ -10,23 +10,11 @@ import numpy as np
 import pandas as pd
 
 from harness.report.cct import CCT_TITLE, cct_table
-from harness.report.frames import (
-    GRID_QUERY,
-    POINT_QUERY,
-    break_even,
-    fastest_classical,
-    fmt,
-    fmt_range,
-    identification_data,
-    label,
-    ladder,
-    latency_cell,
-    matched_speedups,
-    ok,
-    trained,
-)
-from harness.report.ladder import ladder_table
+from harness.report.format import fmt, fmt_range, latency_cell
+from harness.report.frames import identification_data, label, ok, trained
+from harness.report.ladder import GRID_QUERY, POINT_QUERY, fastest_classical, ladder, ladder_table
 from harness.report.paper import paper_table
+from harness.report.speedups import break_even, matched_speedups
 from harness.report.verdicts import RULE, verdict_table
 from harness.suites.accuracy import COI_DELTA
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE

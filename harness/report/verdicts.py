@@ -24,7 +24,9 @@ from harness.measure.paired import (
     TIE_FACTOR,
     ratio_interval,
 )
-from harness.report.frames import GRID_QUERY, POINT_QUERY, fmt, label, ok
+from harness.report.format import fmt
+from harness.report.frames import label, ok
+from harness.report.ladder import GRID_QUERY, POINT_QUERY
 
 __all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "run_to_run_sigma",
            "verdict_table", "verdicts"]

@@ -14,7 +14,7 @@ from systems.reference import OFF_TRAINING, STABLE_CLEARING, reference, seed_ref
 from systems.stability import reference_cct
 
 # The quantity of the angles relative to the centre of inertia (systems without an infinite bus); the
-# verdicts of such a case compare at it (`harness.report.frames.verdict_rows`).
+# verdicts of such a case compare at it (`harness.report.ladder.verdict_rows`).
 COI_DELTA = "delta - delta_COI"
 
 
