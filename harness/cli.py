@@ -159,16 +159,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from harness import executors
-    from harness.isolation import Limits
     from harness.plan import plan
     from harness.provenance import metadata
     from harness.report.files import write_report
     from harness.results_folder import interrupted_message, open_results
     from harness.runner import check_units, execute, outcome
-    from harness.runs import (
+    from harness.settings import (
         DEFAULT,
         FULL,
         QUICK,
+        Limits,
         default_specs,
         parse_option,
         parse_verdict_pinns,

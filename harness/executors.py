@@ -17,7 +17,7 @@ from typing import Any
 
 from harness.measure.timing import THREAD_ENV
 from harness.runner import Unit, inline, run_unit_in_worker
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.usage import UsageError
 
 __all__ = ["choose", "dask", "dask_client", "inline", "joblib"]

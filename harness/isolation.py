@@ -35,19 +35,11 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
-__all__ = ["NO_LIMITS", "Limits", "OverLimit", "call_isolated"]
+from harness.settings import NO_LIMITS, Limits
 
-
-class Limits(NamedTuple):
-    """Wall-clock seconds and resident memory (MiB) a call may use; None: no limit."""
-
-    seconds: float | None = None
-    rss_mb: float | None = None
-
-
-NO_LIMITS = Limits()
+__all__ = ["OverLimit", "call_isolated"]
 
 
 class OverLimit(RuntimeError):

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from harness.runs import Settings, SolverSpec
+from harness.settings import Settings, SolverSpec
 from harness.store import unit_key
 from harness.suites import SUITES, Suite
 from solvers import solver_class

@@ -28,7 +28,7 @@ from harness.isolation import OverLimit, call_isolated
 from harness.measure.timing import blas_threads, pinned_threads
 from harness.model_cache import fit_or_load
 from harness.plan import FIT, Unit, plan
-from harness.runs import Settings, SolverSpec
+from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES
 from harness.usage import EXIT_FAILED, raise_if_interrupted

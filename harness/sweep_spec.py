@@ -63,7 +63,7 @@ class SweepSpec:
     def units(self) -> list:
         """Every run as a `harness.runner.Unit`: for each case, grid point and seed, in that order."""
         from harness.runner import Unit
-        from harness.runs import SolverSpec
+        from harness.settings import SolverSpec
         from systems.cases import CASES
 
         swept = [name for name, _ in self.grid]
@@ -192,7 +192,7 @@ def parse_spec(raw: Mapping[str, Any], check: bool = True) -> SweepSpec:
 
 def sweep_settings(retrain: bool = False):
     """The settings every run of a sweep has: 1 thread (runs share the cores)."""
-    from harness.runs import Settings
+    from harness.settings import Settings
 
     return Settings(name="sweep", threads=1, retrain=retrain)
 

@@ -19,7 +19,7 @@ from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
 from harness.report.tables import build_tables
 from harness.runner import run_unit
-from harness.runs import QUICK, SolverSpec
+from harness.settings import QUICK, SolverSpec
 from harness.suites import SUITES
 from harness.suites.accuracy import COI_DELTA, accuracy
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect

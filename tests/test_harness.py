@@ -15,7 +15,7 @@ from harness.cli import main
 from harness.measure.timing import time_call
 from harness.report.files import write_report
 from harness.runner import run_suites
-from harness.runs import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
+from harness.settings import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
 from harness.store import RowStore, atomic_write
 from solvers.base import AbstractSolver, SolveError
 from systems.cases import SMIB_INFERENCE
@@ -469,7 +469,7 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
     from harness.plan import plan
-    from harness.runs import default_specs
+    from harness.settings import default_specs
     from harness.suites import DEFAULT_SUITES, SUITES
     from systems.cases import SMIB_INFERENCE as forward
 
@@ -492,7 +492,7 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
 
 def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     from harness.plan import plan
-    from harness.runs import default_specs
+    from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES
     from systems.cases import SMIB_INFERENCE as forward
@@ -510,7 +510,7 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
 
 def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
     from harness.plan import plan
-    from harness.runs import default_specs
+    from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES, NETWORK_CASES
 
@@ -537,7 +537,7 @@ def test_work_precision_times_a_compiled_adapter_at_every_t1_once():
 
 
 def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
-    from harness.runs import parse_option, with_options
+    from harness.settings import parse_option, with_options
 
     assert parse_option("max_iterations=100") == ("max_iterations", 100)
     assert parse_option("optimizer=lbfgs") == ("optimizer", "lbfgs")

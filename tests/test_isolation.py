@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.isolation import Limits, OverLimit, call_isolated
+from harness.isolation import OverLimit, call_isolated
+from harness.settings import Limits
 
 
 def _pid_and_sum(a: int, b: int) -> tuple[int, int]:

@@ -14,7 +14,7 @@ from conftest import THREE_MACHINES
 from harness import model_cache
 from harness.model_cache import cache_key, store_cached
 from harness.runner import fit_or_load
-from harness.runs import QUICK
+from harness.settings import QUICK
 from solvers import make_solver
 from solvers.pinn.architecture import Architecture, init_theta
 from solvers.pinn.config import PinnConfig

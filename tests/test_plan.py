@@ -12,7 +12,7 @@ import pytest
 
 from harness.plan import FIT, Unit, left_out, not_on_case, plan
 from harness.runner import run_unit
-from harness.runs import DEFAULT, FULL, QUICK, SolverSpec, default_specs
+from harness.settings import DEFAULT, FULL, QUICK, SolverSpec, default_specs
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver
 from solvers.base import (

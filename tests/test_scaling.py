@@ -84,7 +84,7 @@ def test_bad_limits_are_one_line_errors(tmp_path):
 
 
 def test_scaling_settings_budget_pinns_by_iterations():
-    from harness.runs import DEFAULT, SCALING_PINN_OPTIONS
+    from harness.settings import DEFAULT, SCALING_PINN_OPTIONS
 
     settings = DEFAULT.for_scaling()
     assert settings.unit_limits == DEFAULT.scaling_unit_limits and settings.case_pinn_options == {}

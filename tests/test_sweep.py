@@ -16,7 +16,7 @@ import pytest
 from harness import sweep
 from harness.measure.timing import pinned_threads
 from harness.runner import Unit, run_unit_in_worker
-from harness.runs import Settings, SolverSpec
+from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from solvers import SOLVERS
 from solvers.base import AbstractSolver

@@ -11,7 +11,7 @@ import pytest
 from conftest import check_points_as_solves
 
 from harness.measure import metrics
-from harness.runs import DEFAULT
+from harness.settings import DEFAULT
 from solvers import make_solver
 from solvers.base import SolveError
 from solvers.trapezoid import HALF_CYCLE, STEPS

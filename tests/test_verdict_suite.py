@@ -10,7 +10,7 @@ import pytest
 
 from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
 from harness.report.verdicts import compare_runs, verdicts
-from harness.runs import QUICK
+from harness.settings import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals, query_errors, verdict_queries
 from harness.suites.verdict import query_paths, verdict

@@ -21,7 +21,7 @@ import numpy as np
 
 from harness.measure import metrics
 from harness.measure.paired import warm_call_s
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites.accuracy import off_training_grid
 from harness.suites.latency import queries
 from solvers import SOLVERS

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.measure import metrics
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid

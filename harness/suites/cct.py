@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.measure.timing import time_call
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._seeds import seed_models
 from solvers.base import AbstractSolver

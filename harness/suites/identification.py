@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import SMIB, SMIB_IDENTIFICATION, Case, Observations, standard_grid

@@ -18,7 +18,7 @@ import numpy as np
 
 from harness.measure import metrics
 from harness.measure.timing import time_call
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites.accuracy import COI_DELTA
 from solvers.base import AbstractSolver

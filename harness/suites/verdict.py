@@ -34,7 +34,7 @@ from harness.measure.paired import (
     verdict_label,
     warm_call_s,
 )
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._matching import Query, Rivals, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 from harness.measure import metrics
 from harness.measure.timing import time_call
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites.latency import T1_S, queries
 from solvers.base import AbstractSolver

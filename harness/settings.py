@@ -1,5 +1,5 @@
 """What a run measures: solver specifications (adapter, named config, seed, option overrides) and
-the settings of a run (budgets, seeds, pairs, noise levels)."""
+the settings of a run (budgets, seeds, pairs, noise levels, the `Limits` a unit may run under)."""
 
 from __future__ import annotations
 
@@ -7,15 +7,25 @@ import json
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
-from harness.isolation import Limits
 from solvers import INTERFACE, SOLVERS, UNAVAILABLE, make_solver
 from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, SWEEP_POINT, AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 from systems.faults import FAULT_CASES
 
-__all__ = ["DEFAULT", "FULL", "PAPER_PAIR", "QUICK", "Settings", "SolverSpec", "default_specs", "parse_verdict_pinns"]
+__all__ = ["DEFAULT", "FULL", "NO_LIMITS", "PAPER_PAIR", "QUICK", "Limits", "Settings", "SolverSpec", "default_specs",
+           "parse_verdict_pinns"]
+
+
+class Limits(NamedTuple):
+    """Wall-clock seconds and resident memory (MiB) a call may use; None: no limit."""
+
+    seconds: float | None = None
+    rss_mb: float | None = None
+
+
+NO_LIMITS = Limits()
 
 
 @dataclass(frozen=True)
