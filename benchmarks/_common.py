@@ -7,7 +7,7 @@ Nothing here is a second implementation of a measurement. Timings call the adapt
 (`harness.suites.identification.pair_observations`); errors are the rows of the harness's suites
 (`harness.suites.accuracy.accuracy`, `harness.suites.identification.identification`, which compute
 them with `harness.measure.metrics` against `systems.reference`); trained models go through the harness's
-model cache (`harness.runner.fit_or_load`).
+model cache (`harness.model_cache.fit_or_load`).
 
 Parameters: `case` is every forward case of the run's settings (`SETTINGS.cases`: the SMIB
 "smib-inference" and the multi-machine networks of `systems.grids`); the identification benchmarks
@@ -45,8 +45,8 @@ from typing import Any
 import numpy as np
 
 from benchmarks import THREADS
+from harness.model_cache import fit_or_load
 from harness.plan import left_out, not_on_case
-from harness.runner import fit_or_load
 from harness.settings import DEFAULT, QUICK, Settings, SolverSpec, default_specs
 from harness.suites import SUITES, identification_case
 from harness.suites.accuracy import COI_DELTA, accuracy

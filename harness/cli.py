@@ -174,9 +174,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         parse_verdict_pinns,
         with_options,
     )
-    from harness.store import atomic_write
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
+    from solvers.atomic import atomic_write
     from systems.cases import CASES
 
     check_known("run", "suite(s)", args.suite, SUITES)

@@ -16,7 +16,8 @@ from collections.abc import Iterator
 from typing import Any
 
 from harness.measure.timing import THREAD_ENV
-from harness.runner import Unit, inline, run_unit_in_worker
+from harness.plan import Unit
+from harness.runner import inline, run_unit_in_worker
 from harness.settings import Settings
 from harness.usage import UsageError
 

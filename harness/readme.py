@@ -32,8 +32,8 @@ def around(path: Path, start: str, end: str, command: str) -> tuple[str, str]:
 
 def replace_section(path: Path, start: str, end: str, block: str, command: str) -> None:
     """Replace the text between the markers `start` and `end` of `path` with `block`, in one
-    atomic write (`harness.store.atomic_write`)."""
-    from harness.store import atomic_write
+    atomic write (`solvers.atomic.atomic_write`)."""
+    from solvers.atomic import atomic_write
 
     head, tail = around(path, start, end, command)
     atomic_write(path, head + start + block + end + tail)

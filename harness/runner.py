@@ -36,8 +36,7 @@ from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
 
-__all__ = ["FIT", "Unit", "check_units", "execute", "failure_summary", "fit_or_load", "inline", "outcome", "plan",
-           "run_suites", "run_unit"]
+__all__ = ["check_units", "execute", "failure_summary", "inline", "outcome", "run_suites", "run_unit"]
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:

@@ -9,7 +9,7 @@ SPEC is a JSON file of a grid over one adapter's options (format and validation:
 
 Each run is one unit of `harness.runner` (the runner of `swingbench run`: one row store, one
 resume rule, one thread-pinning helper, one progress bar): the adapter is built, fitted
-(`harness.runner.fit_or_load`: trained models come from the model cache unless --retrain) and its
+(`harness.model_cache.fit_or_load`: trained models come from the model cache unless --retrain) and its
 accuracy measured (`harness.suites.accuracy`), in a worker process pinned to 1 thread. Its rows are a
 `fit` row (fit_s, iterations, loss) and the accuracy rows, with the swept values as `p_<option>`
 columns and the grid point's index as `point`. A run that raises gives `failed: ...` rows and the
@@ -110,7 +110,8 @@ def write_outputs(store, out: Path, meta: dict) -> str:
     """sweep.csv (every row, tidy) and sweep.md from `store`, atomically; returns the Markdown."""
     import pandas as pd
 
-    from harness.store import UNIT_COLUMNS, atomic_write
+    from harness.store import UNIT_COLUMNS
+    from solvers.atomic import atomic_write
 
     frame = pd.DataFrame(store.rows())
     if not frame.empty:
@@ -199,7 +200,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.provenance import metadata
     from harness.results_folder import interrupted_message, open_results
     from harness.runner import execute, outcome
-    from harness.store import atomic_write
+    from solvers.atomic import atomic_write
 
     store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()},
                                    overwrite=args.overwrite)

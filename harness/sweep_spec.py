@@ -61,8 +61,8 @@ class SweepSpec:
         return [dict(zip(names, values)) for values in itertools.product(*(v for _, v in self.grid))]
 
     def units(self) -> list:
-        """Every run as a `harness.runner.Unit`: for each case, grid point and seed, in that order."""
-        from harness.runner import Unit
+        """Every run as a `harness.plan.Unit`: for each case, grid point and seed, in that order."""
+        from harness.plan import Unit
         from harness.settings import SolverSpec
         from systems.cases import CASES
 

@@ -16,7 +16,8 @@ from harness.measure.timing import time_call
 from harness.report.files import write_report
 from harness.runner import run_suites
 from harness.settings import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
-from harness.store import RowStore, atomic_write
+from harness.store import RowStore
+from solvers.atomic import atomic_write
 from solvers.base import AbstractSolver, SolveError
 from systems.cases import SMIB_INFERENCE
 

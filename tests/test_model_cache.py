@@ -12,8 +12,7 @@ import pytest
 from conftest import THREE_MACHINES
 
 from harness import model_cache
-from harness.model_cache import cache_key, store_cached
-from harness.runner import fit_or_load
+from harness.model_cache import cache_key, fit_or_load, store_cached
 from harness.settings import QUICK
 from solvers import make_solver
 from solvers.pinn.architecture import Architecture, init_theta

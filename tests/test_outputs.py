@@ -7,7 +7,8 @@ import stat
 
 import pytest
 
-from harness.store import RowStore, atomic_write
+from harness.store import RowStore
+from solvers.atomic import atomic_write
 
 KEY = {"suite": "s", "case": "c", "solver": "x", "config": "default", "variant": "", "seed": -1}
 

@@ -15,7 +15,8 @@ import pytest
 
 from harness import sweep
 from harness.measure.timing import pinned_threads
-from harness.runner import Unit, run_unit_in_worker
+from harness.plan import Unit
+from harness.runner import run_unit_in_worker
 from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from solvers import SOLVERS

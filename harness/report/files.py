@@ -19,7 +19,7 @@ from harness.report.markdown import header, scaling_labels, scaling_markdown, se
 from harness.report.plots import SCALING_PLOTS
 from harness.report.scaling import scaling_frame
 from harness.report.tables import build_tables
-from harness.store import atomic_write
+from solvers.atomic import atomic_write
 
 __all__ = ["write_report"]
 

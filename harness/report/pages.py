@@ -20,7 +20,7 @@ from harness.report.markdown import header, scaling_markdown, section_markdown, 
 from harness.report.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
 from harness.report.tables import build_tables
 from harness.report.verdicts import RULE, headline_table
-from harness.store import atomic_write
+from solvers.atomic import atomic_write
 
 __all__ = ["GENERATED", "readme_block", "write_pages"]
 

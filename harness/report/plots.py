@@ -283,7 +283,7 @@ def make_plots(frames: dict[str, pd.DataFrame], out_dir: Path, suffix: str = "",
     file stems. Written twice from the same frames, with the same matplotlib, they are the same bytes."""
     import io
 
-    from harness.store import atomic_write
+    from solvers.atomic import atomic_write
 
     labels = labels or Labels(frames)
     written = []
