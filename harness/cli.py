@@ -2,7 +2,7 @@
 `list` (`harness.sweep`, `harness.compare`, `harness.listing`) do what their modules say.
 
 Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
-some failed (one line names them and where their rows are) or were lost (`harness.runner.outcome`);
+some failed (one line names them and where their rows are) or were lost (`harness.run.runner.outcome`);
 2 for bad input, found before anything is measured (`harness.usage.UsageError`: one line on
 stderr, no traceback); 130 on Ctrl-C."""
 
@@ -158,12 +158,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
-    from harness import executors
-    from harness.plan import plan
     from harness.provenance import metadata
     from harness.report.files import write_report
     from harness.results_folder import interrupted_message, open_results
-    from harness.runner import check_units, execute, outcome
+    from harness.run import executors
+    from harness.run.plan import plan
+    from harness.run.runner import check_units, execute, outcome
     from harness.settings import (
         DEFAULT,
         FULL,

@@ -1,5 +1,5 @@
 """The options `swingbench run` and `swingbench sweep` share, each defined once: both commands run
-units of work through `harness.runner` into one results folder, so these options mean the same in
+units of work through `harness.run.runner` into one results folder, so these options mean the same in
 both; what differs (the default folder, what a unit of work is called, how many workers) is passed in.
 
 This module imports only the standard library: the CLI imports it to build its parser."""

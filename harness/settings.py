@@ -14,8 +14,8 @@ from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, SWEEP_POINT, A
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 from systems.faults import FAULT_CASES
 
-__all__ = ["DEFAULT", "FULL", "NO_LIMITS", "PAPER_PAIR", "QUICK", "Limits", "Settings", "SolverSpec", "default_specs",
-           "parse_verdict_pinns"]
+__all__ = ["DEFAULT", "FULL", "NO_LIMITS", "PAPER_PAIR", "QUICK", "Limits", "Settings", "SolverSpec",
+           "default_specs", "parse_verdict_pinns"]
 
 
 class Limits(NamedTuple):
@@ -88,7 +88,7 @@ class Settings:
     """Knobs of a run. Timings are medians of warm repeats within `latency_budget_s` seconds per
     measurement (at least `min_repeats`; a call over `max_call_s` is timed once); a latency query
     estimated to take longer than `max_query_s` is skipped with a row that says so. Adapters that
-    train run once per seed in `seeds` (on a multi-machine case the first only: `harness.plan`);
+    train run once per seed in `seeds` (on a multi-machine case the first only: `harness.run.plan`);
     `pinn_options` override their budgets (iterations, so that a seed gives the same network on a
     busy machine). Latency:
     `throughput_sizes` trajectories of 201 times, the single point at each of `t1_values_s`, and
@@ -107,7 +107,7 @@ class Settings:
     slow, minutes with 2n unknowns, and biased by the integration error: 10-14 % on wscc9,
     measured) on `network_identify_cases` at `network_noise_levels` (with 1 % noise scipy-rk45
     took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
-    (iterations per window, `harness.plan`). The verdict suite (`harness.suites.verdict`) measures
+    (iterations per window, `harness.run.plan`). The verdict suite (`harness.suites.verdict`) measures
     the PINNs of `verdict_pinns` ((adapter, configs, options its spec has): by default the JAX PINN,
     `swingbench run --verdict-pinn` sets any trained adapters, `parse_verdict_pinns`; the
     suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
@@ -115,12 +115,12 @@ class Settings:
     than it needs to be; a fixed-step adapter sweeps its own steps), in
     `verdict_rounds` rounds of `verdict_pairs` interleaved pairs of samples; a seed whose error in
     the angles (relative L2) is not finite or exceeds `verdict_gate` counts as a loss. `unit_limits` (None: none) runs each unit in a fresh process under a
-    wall-clock and a memory limit (`harness.runner.run_unit`); a run of the scaling suite uses
+    wall-clock and a memory limit (`harness.run.runner.run_unit`); a run of the scaling suite uses
     `scaling_unit_limits`, on `scaling_cases` when the command line names none, querying a grid
     of `scaling_n_p1` x `scaling_n_t`, PINNs with `scaling_pinn_options` (`for_scaling`). The cct
     suite runs on `cct_cases` when the command line names none; a surrogate's CCT search queries
     clearing times every `cct_surrogate_step_s` s in one batch (`harness.suites.cct`). Which
-    spec runs on which case and suite, and why the rest does not, is `harness.plan.plan`'s."""
+    spec runs on which case and suite, and why the rest does not, is `harness.run.plan.plan`'s."""
 
     name: str = "default"
     threads: int = 2
@@ -324,7 +324,7 @@ def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any]) -> list
     """`specs` with `overrides` set in the options of every spec whose adapter has the option (its
     variant then shows them). ValueError when an override is an option of none of the specs'
     adapters. The values are checked where every option is, on every case it runs on: by building
-    each unit's adapter before measuring (`harness.runner.check_units`)."""
+    each unit's adapter before measuring (`harness.run.runner.check_units`)."""
     specs = list(specs)
     known = {key for spec in specs if SOLVERS.get(spec.solver) for key in SOLVERS[spec.solver].OPTIONS}
     unknown = sorted(set(overrides) - known)

@@ -5,9 +5,9 @@ grid and writes one row per accuracy measurement of every run. Sweeps measure ac
 training cost only: several runs share the machine's cores, so no query latency is measured here
 (the latency suite of `swingbench run` runs alone).
 
-SPEC is a JSON file of a grid over one adapter's options (format and validation: `harness.sweep_spec`).
+SPEC is a JSON file of a grid over one adapter's options (format and validation: `harness.run.sweep_spec`).
 
-Each run is one unit of `harness.runner` (the runner of `swingbench run`: one row store, one
+Each run is one unit of `harness.run.runner` (the runner of `swingbench run`: one row store, one
 resume rule, one thread-pinning helper, one progress bar): the adapter is built, fitted
 (`harness.model_cache.fit_or_load`: trained models come from the model cache unless --retrain) and its
 accuracy measured (`harness.suites.accuracy`), in a worker process pinned to 1 thread. Its rows are a
@@ -15,7 +15,7 @@ accuracy measured (`harness.suites.accuracy`), in a worker process pinned to 1 t
 columns and the grid point's index as `point`. A run that raises gives `failed: ...` rows and the
 sweep goes on.
 
-Executors (`harness.executors`, only the executor differs): by default joblib's loky backend with
+Executors (`harness.run.executors`, only the executor differs): by default joblib's loky backend with
 --workers processes of 1 thread each; with --scheduler ADDRESS an existing dask.distributed
 cluster (its workers should run 1 thread each, e.g. `dask worker ADDRESS --nthreads 1`, and have
 swingbench installed), with --dask-local a LocalCluster of --workers processes, 1 thread each.
@@ -47,7 +47,7 @@ from harness.cli_options import (
     progress_setting,
     register_file_cases,
 )
-from harness.sweep_spec import SweepSpec, load_spec, parse_spec, sweep_settings
+from harness.run.sweep_spec import SweepSpec, load_spec, parse_spec, sweep_settings
 
 __all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "summary_table"]
 
@@ -196,10 +196,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
         return 0
 
-    from harness import executors
     from harness.provenance import metadata
     from harness.results_folder import interrupted_message, open_results
-    from harness.runner import execute, outcome
+    from harness.run import executors
+    from harness.run.runner import execute, outcome
     from solvers.atomic import atomic_write
 
     store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()},

@@ -12,13 +12,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from harness.plan import plan
 from harness.report.cct import cct_headline
 from harness.report.cct_plot import cct_plot
 from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
 from harness.report.tables import build_tables
-from harness.runner import run_unit
+from harness.run.plan import plan
+from harness.run.runner import run_unit
 from harness.settings import QUICK, SolverSpec
 from harness.suites import SUITES
 from harness.suites.accuracy import COI_DELTA, accuracy

@@ -14,7 +14,7 @@ import solvers
 from harness.cli import main
 from harness.measure.timing import time_call
 from harness.report.files import write_report
-from harness.runner import run_suites
+from harness.run.runner import run_suites
 from harness.settings import DEFAULT, FULL, PAPER_PAIR, QUICK, SolverSpec, default_specs
 from harness.store import RowStore
 from solvers.atomic import atomic_write
@@ -469,7 +469,7 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
-    from harness.plan import plan
+    from harness.run.plan import plan
     from harness.settings import default_specs
     from harness.suites import DEFAULT_SUITES, SUITES
     from systems.cases import SMIB_INFERENCE as forward
@@ -492,7 +492,7 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
 
 
 def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
-    from harness.plan import plan
+    from harness.run.plan import plan
     from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES
@@ -510,7 +510,7 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
 
 
 def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
-    from harness.plan import plan
+    from harness.run.plan import plan
     from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES, NETWORK_CASES
@@ -545,8 +545,8 @@ def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
     assert parse_option("max_seconds=null") == ("max_seconds", None)
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_option("rtol")
-    from harness.plan import plan
-    from harness.runner import check_units
+    from harness.run.plan import plan
+    from harness.run.runner import check_units
     from harness.suites import SUITES
 
     specs = default_specs(["scipy-rk45", "numba-rk"], ["default"])

@@ -1,4 +1,4 @@
-"""The planner (`harness.plan`): make bench's selection of units is what it was before the planner
+"""The planner (`harness.run.plan`): make bench's selection of units is what it was before the planner
 read declarations; SMIB or network is the case's kind; capabilities are declared, and the
 declarations agree with the adapters' options."""
 
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.plan import FIT, Unit, left_out, not_on_case, plan
-from harness.runner import run_unit
+from harness.run.plan import FIT, Unit, left_out, not_on_case, plan
+from harness.run.runner import run_unit
 from harness.settings import DEFAULT, FULL, QUICK, SolverSpec, default_specs
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver

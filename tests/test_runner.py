@@ -14,7 +14,7 @@ import pytest
 
 import solvers
 from harness.cli import main
-from harness.runner import run_suites
+from harness.run.runner import run_suites
 from harness.settings import QUICK, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite

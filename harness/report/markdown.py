@@ -13,8 +13,8 @@ from harness.report.ladder import verdict_lines
 from harness.report.scaling import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import unit_key
 
-__all__ = ["LADDER_HEADING", "header", "scaling_labels", "scaling_markdown", "section_markdown", "verdict_markdown",
-           "work_minutes"]
+__all__ = ["LADDER_HEADING", "header", "scaling_labels", "scaling_markdown", "section_markdown",
+           "verdict_markdown", "work_minutes"]
 
 
 def header(meta: dict) -> str:

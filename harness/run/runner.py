@@ -1,12 +1,12 @@
 """One runner for `swingbench run` and `swingbench sweep`.
 
-`harness.plan.plan` (or a sweep's grid) gives units: one solver specification on one case with the
+`harness.run.plan.plan` (or a sweep's grid) gives units: one solver specification on one case with the
 suites to measure on it, built and fitted once (and those the run's settings leave out there,
 recorded as skipped). `check_units` builds (does not fit) every unit's adapter before anything is
 measured, so that an option value invalid on one of the cases stops the command at once.
 `execute` skips the units of work (a suite of a unit, or its fit) whose completion the store
 already records, runs the rest on an executor (in this process, joblib or Dask:
-`harness.executors`) and records each unit of work as it completes, with its rows in one write
+`harness.run.executors`) and records each unit of work as it completes, with its rows in one write
 (`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
 says afterwards, in one line, which units failed, and gives the command's exit status. An
 interrupt is no failure: one that compiled code wrapped in another exception stops the run as a
@@ -24,10 +24,10 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
 from pathlib import Path
 
-from harness.isolation import OverLimit, call_isolated
 from harness.measure.timing import blas_threads, pinned_threads
 from harness.model_cache import fit_or_load
-from harness.plan import FIT, Unit, plan
+from harness.run.isolation import OverLimit, call_isolated
+from harness.run.plan import FIT, Unit, plan
 from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES
@@ -75,7 +75,7 @@ def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tu
     wrapped or not, is raised as a KeyboardInterrupt.
 
     In this process, unless `settings.unit_limits` is set: then the whole unit runs in a fresh
-    process under those limits (`harness.isolation`), every row gains `peak_rss_mib` (the peak
+    process under those limits (`harness.run.isolation`), every row gains `peak_rss_mib` (the peak
     resident memory of that process: imports, build, training, queries), and a unit that runs past
     a limit is killed and gets one 'skipped: out of time: ...' / 'skipped: out of memory: ...' row
     per unit of work."""
@@ -149,7 +149,7 @@ def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) ->
 def inline(jobs: list[tuple[Unit, tuple[str, ...]]], settings: Settings
            ) -> Iterator[tuple[Unit, str, list[dict] | None]]:
     """The executor of this process (threads as pinned by the caller), each unit of work recorded
-    as it ends: `execute`'s default. The executors of other processes are in `harness.executors`."""
+    as it ends: `execute`'s default. The executors of other processes are in `harness.run.executors`."""
     for unit, todo in jobs:
         for work, rows in run_unit(unit, settings, todo):
             yield unit, work, rows

@@ -1,7 +1,7 @@
 """A call in a fresh Python process, under a wall-clock and a memory limit, with its peak memory.
 
 `call_isolated(fn, *args, limits=...)` pickles (fn, args) to a file, starts
-`python -m harness.isolation PARENT IN OUT` in a session of its own (so that a limit kills the
+`python -m harness.run.isolation PARENT IN OUT` in a session of its own (so that a limit kills the
 child's whole process group, whatever it started), and polls it: past `limits.seconds` of
 wall-clock time, or once the resident memory of the child and its own children exceeds
 `limits.rss_mb`, the whole session is killed and `OverLimit` raised, saying which limit and what was
@@ -83,7 +83,7 @@ def call_isolated(fn: Callable[..., Any], *args: Any, limits: Limits = NO_LIMITS
         inp.write(pickle.dumps(list(sys.path)) + pickle.dumps((fn, args)))
         inp.flush()
         fds = (inp.fileno(), out.fileno())
-        proc = subprocess.Popen([sys.executable, "-m", "harness.isolation", str(os.getpid()), *map(str, fds)],
+        proc = subprocess.Popen([sys.executable, "-m", __name__, str(os.getpid()), *map(str, fds)],
                                 start_new_session=True, pass_fds=fds)
         start, peak_seen = time.perf_counter(), 0.0
         try:

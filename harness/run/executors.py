@@ -4,7 +4,7 @@ An executor is a callable `(jobs, settings) -> iterator of (unit, work, rows)`, 
 (unit, units of work to do) pairs; it yields each unit of work's rows as they arrive, or
 `(unit, work, None)` for each one it lost (a killed worker, a broken pool). Only the in-process
 executor streams a unit's suites one by one; workers return a unit's rows together. The
-in-process one, `inline`, is the runner's default, so it lives in `harness.runner` (this module
+in-process one, `inline`, is the runner's default, so it lives in `harness.run.runner` (this module
 builds on the runner, never the other way) and is listed here with the others.
 """
 
@@ -16,8 +16,8 @@ from collections.abc import Iterator
 from typing import Any
 
 from harness.measure.timing import THREAD_ENV
-from harness.plan import Unit
-from harness.runner import inline, run_unit_in_worker
+from harness.run.plan import Unit
+from harness.run.runner import inline, run_unit_in_worker
 from harness.settings import Settings
 from harness.usage import UsageError
 

@@ -17,7 +17,7 @@ SPEC is a JSON file::
 Every key of "grid" and "options" must be an option of the adapter (`SOLVERS[name].OPTIONS`);
 "seed" is set through "seeds" and "threads" is fixed at 1 (each run gets one core). Every grid
 point is checked on every case by constructing its adapter as the run will (which validates the
-option values, those that depend on the case too: `harness.runner.check_units`) before any run
+option values, those that depend on the case too: `harness.run.runner.check_units`) before any run
 starts, --dry-run included; a bad spec stops with one line naming the key (exit status 2).
 
 This module imports only the standard library at the top: `harness.sweep`, which the CLI imports
@@ -61,8 +61,8 @@ class SweepSpec:
         return [dict(zip(names, values)) for values in itertools.product(*(v for _, v in self.grid))]
 
     def units(self) -> list:
-        """Every run as a `harness.plan.Unit`: for each case, grid point and seed, in that order."""
-        from harness.plan import Unit
+        """Every run as a `harness.run.plan.Unit`: for each case, grid point and seed, in that order."""
+        from harness.run.plan import Unit
         from harness.settings import SolverSpec
         from systems.cases import CASES
 
@@ -199,9 +199,9 @@ def sweep_settings(retrain: bool = False):
 
 def _check_points(spec: SweepSpec) -> None:
     """Construct (not fit) the adapter of every grid point on every case, as its runs will be
-    (`harness.runner.check_units`; the first seed: a seed cannot make options invalid): it rejects
+    (`harness.run.runner.check_units`; the first seed: a seed cannot make options invalid): it rejects
     bad option values, those invalid on one case only too."""
-    from harness.runner import check_units
+    from harness.run.runner import check_units
 
     points = spec.points()
 
