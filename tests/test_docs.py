@@ -10,7 +10,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.cli import README_END, README_START, main
-from harness.compare import COMPARE_END, COMPARE_START, compare_block
+from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
 from harness.report.files import write_report
 from harness.report.labels import Labels, split_items
 from harness.report.markdown import LADDER_HEADING

@@ -13,7 +13,7 @@ from typing import ClassVar
 import pandas as pd
 import pytest
 
-from harness import sweep
+from harness.cli import sweep
 from harness.measure.timing import pinned_threads
 from harness.run.plan import Unit
 from harness.run.runner import run_unit_in_worker

@@ -127,8 +127,7 @@ def test_two_runs_agree_flip_or_tie_in_one_and_compare_exits_1_on_a_flip(monkeyp
 
     import pandas as pd
 
-    from harness import compare
-
+    from harness.cli import compare
     def run(*labels):
         return {"verdict": pd.DataFrame([
             {"suite": "verdict", "case": "wscc9", "solver": "jax-pinn", "config": "marching", "variant": "",

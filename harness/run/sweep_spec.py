@@ -1,4 +1,4 @@
-"""The JSON spec of `swingbench sweep` (`harness.sweep`) and its validation.
+"""The JSON spec of `swingbench sweep` (`harness.cli.sweep`) and its validation.
 
 SPEC is a JSON file::
 
@@ -20,7 +20,7 @@ point is checked on every case by constructing its adapter as the run will (whic
 option values, those that depend on the case too: `harness.run.runner.check_units`) before any run
 starts, --dry-run included; a bad spec stops with one line naming the key (exit status 2).
 
-This module imports only the standard library at the top: `harness.sweep`, which the CLI imports
+This module imports only the standard library at the top: `harness.cli.sweep`, which the CLI imports
 to build its parser, imports it.
 """
 

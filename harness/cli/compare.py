@@ -168,7 +168,7 @@ def _sigma(frames_a: dict, frames_b: dict) -> str:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from harness.readme import replace_section
+    from harness.cli.readme import replace_section
     from harness.report.verdicts import FLIP, compare_runs
 
     start = args.update_readme.resolve().parent if args.update_readme else Path()

@@ -41,7 +41,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from harness.cli_options import (
+from harness.cli.options import (
     add_case_file_options,
     add_shared_options,
     progress_setting,
@@ -196,8 +196,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
         return 0
 
+    from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
-    from harness.results_folder import interrupted_message, open_results
     from harness.run import executors
     from harness.run.runner import execute, outcome
     from solvers.atomic import atomic_write

@@ -1,5 +1,5 @@
 """Command line: `swingbench run` measures, `report` re-renders a results folder, `sweep`, `compare` and
-`list` (`harness.sweep`, `harness.compare`, `harness.listing`) do what their modules say.
+`list` (`harness.cli.sweep`, `harness.cli.compare`, `harness.cli.listing`) do what their modules say.
 
 Exit status (`run` and `sweep`): 0 when every unit of work was measured or declared a skip; 1 when
 some failed (one line names them and where their rows are) or were lost (`harness.run.runner.outcome`);
@@ -13,14 +13,14 @@ import json
 import sys
 from pathlib import Path
 
-from harness import compare, listing, sweep  # import only the standard library until they run
-from harness.cli_options import (
+from harness.cli import compare, listing, sweep  # import only the standard library until they run
+from harness.cli.options import (
     add_case_file_options,
     add_shared_options,
     progress_setting,
     register_file_cases,
 )
-from harness.readme import README_END, README_START, around, replace_section
+from harness.cli.readme import README_END, README_START, around, replace_section
 from harness.usage import UsageError, check_known
 
 
@@ -158,9 +158,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
+    from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
     from harness.report.files import write_report
-    from harness.results_folder import interrupted_message, open_results
     from harness.run import executors
     from harness.run.plan import plan
     from harness.run.runner import check_units, execute, outcome
