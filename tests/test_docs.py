@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.cli import README_END, README_START, main
+from harness.cli import main
 from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
+from harness.cli.readme import README_END, README_START
 from harness.report.files import write_report
 from harness.report.labels import Labels, split_items
 from harness.report.markdown import LADDER_HEADING

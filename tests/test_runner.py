@@ -405,7 +405,7 @@ def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsy
 
 
 def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_all():
-    from harness.cli import _suite_names
+    from harness.cli.run import _suite_names
     from harness.suites import DEFAULT_SUITES
 
     assert list(SUITES) == _suite_names() == ["accuracy", "cct", "identification", "latency", "scaling", "verdict",

@@ -196,10 +196,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
         return 0
 
+    from harness.cli.outcome import outcome
     from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
     from harness.run import executors
-    from harness.run.runner import execute, outcome
+    from harness.run.runner import execute
     from solvers.atomic import atomic_write
 
     store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()},

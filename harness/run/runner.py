@@ -7,10 +7,10 @@ measured, so that an option value invalid on one of the cases stops the command 
 `execute` skips the units of work (a suite of a unit, or its fit) whose completion the store
 already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.run.executors`) and records each unit of work as it completes, with its rows in one write
-(`RowStore.record`). Failures and missing dependencies are rows; the run goes on, and `outcome`
-says afterwards, in one line, which units failed, and gives the command's exit status. An
-interrupt is no failure: one that compiled code wrapped in another exception stops the run as a
-plain Ctrl-C does (`_failure`).
+(`RowStore.record`). Failures and missing dependencies are rows (`failed` tells them); the run
+goes on, and the command says afterwards which units failed, with its exit status
+(`harness.cli.outcome`). An interrupt is no failure: one that compiled code wrapped in another
+exception stops the run as a plain Ctrl-C does (`_failure`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
-from pathlib import Path
 
 from harness.measure.timing import blas_threads, pinned_threads
 from harness.model_cache import fit_or_load
@@ -31,12 +30,12 @@ from harness.run.plan import FIT, Unit, plan
 from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES
-from harness.usage import EXIT_FAILED, raise_if_interrupted
+from harness.usage import raise_if_interrupted
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
 
-__all__ = ["check_units", "execute", "failure_summary", "inline", "outcome", "run_suites", "run_unit"]
+__all__ = ["check_units", "execute", "failed", "inline", "run_suites", "run_unit"]
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
@@ -202,46 +201,6 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         if bar:
             bar.close()
     return counts
-
-
-def _unit_label(row: dict) -> str:
-    """`Unit.label` of the unit a row belongs to, from the row's columns."""
-    seed = row.get("seed")
-    extra = "".join(f",{part}" for part in (row.get("variant") or "", "" if seed in (None, -1) else f"seed={seed}")
-                    if part)
-    return f"{row.get('solver')}[{row.get('config')}{extra}] {row.get('case')}"
-
-
-def failure_summary(rows: Iterable[dict], where: Path, shown: int = 5) -> str | None:
-    """One line on the units of work in `rows` that `failed` (declared skips are not failures): how
-    many, in which units (solver, config, variant and case; the first `shown` of them) and which
-    of their units of work, and `where` their rows are. None when nothing failed."""
-    works: dict[str, list[str]] = {}
-    for row in rows:
-        if failed(row):
-            suites = works.setdefault(_unit_label(row), [])
-            if row.get("suite") not in suites:
-                suites.append(row.get("suite"))
-    if not works:
-        return None
-    listed = "; ".join(f"{label} ({', '.join(map(str, suites))})" for label, suites in list(works.items())[:shown])
-    more = f"; and {len(works) - shown} more unit(s)" if len(works) > shown else ""
-    return (f"{sum(map(len, works.values()))} unit(s) of work failed, in {len(works)} unit(s): {listed}{more}; "
-            f"their rows, with the reason in 'status', are in {where}")
-
-
-def outcome(rows: list[dict], where: Path, lost: int = 0) -> int:
-    """The exit status of a command that measured: 0 when no unit of work in `rows` failed and
-    none was lost; else one line on stderr for each (`failure_summary`; lost units are run by
-    --resume) and `EXIT_FAILED`. `rows` are those of the whole output folder: a resumed run's
-    earlier failures are results of the run too, kept, not run again."""
-    summary = failure_summary(rows, where)
-    if summary:
-        print(f"[swingbench] {summary}", file=sys.stderr)
-    if lost:
-        print(f"[swingbench] {lost} unit(s) of work lost to the executor, not recorded: add --resume to run them",
-              file=sys.stderr)
-    return EXIT_FAILED if summary or lost else 0
 
 
 def run_suites(
