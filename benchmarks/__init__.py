@@ -6,7 +6,7 @@ small training budgets, nothing saved). Threads are pinned here, before any benc
 imports the registry and with it torch or jax, so that their thread pools start at this size.
 """
 
-from harness.timing import pin_threads
+from harness.measure.timing import pin_threads
 
 THREADS = 2  # the harness's Settings.threads; `_common` checks that they agree
 

@@ -6,17 +6,17 @@ Nothing here is a second implementation of a measurement. Timings call the adapt
 `solve` and `identify` on the harness's queries (`harness.suites.latency.queries`) and observations
 (`harness.suites.identification.pair_observations`); errors are the rows of the harness's suites
 (`harness.suites.accuracy.accuracy`, `harness.suites.identification.identification`, which compute
-them with `harness.metrics` against `systems.reference`); trained models go through the harness's
-model cache (`harness.runner.fit_or_load`).
+them with `harness.measure.metrics` against `systems.reference`); trained models go through the harness's
+model cache (`harness.model_cache.fit_or_load`).
 
 Parameters: `case` is every forward case of the run's settings (`SETTINGS.cases`: the SMIB
 "smib-inference" and the multi-machine networks of `systems.grids`); the identification benchmarks
 identify on that case's identification case (`harness.suites.identification_case`: the SMIB's
 "smib-identification" with the run's (m, d) pairs, a network itself with its own parameters as the
 truth). `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
-`harness.runs.default_specs` (the adapter's named config plus its option overrides other than the
+`harness.settings.default_specs` (the adapter's named config plus its option overrides other than the
 training budget, e.g. "default,batch=stacked"). A triple that the harness does not run (a pair it
-does not run, or a spec that the planner leaves off the case, `harness.plan.not_on_case`, e.g. a
+does not run, or a spec that the planner leaves off the case, `harness.run.plan.not_on_case`, e.g. a
 PINN config not made for networks on a network) is skipped without a process (asv `skip_params`); an
 adapter whose optional dependency is missing is skipped in setup (NotImplementedError, with the
 reason in asv's output). A case that fails to build (see `CASE_ERRORS`) or a triple whose
@@ -45,9 +45,9 @@ from typing import Any
 import numpy as np
 
 from benchmarks import THREADS
-from harness.plan import left_out, not_on_case
-from harness.runner import fit_or_load
-from harness.runs import DEFAULT, QUICK, Settings, SolverSpec, default_specs
+from harness.model_cache import fit_or_load
+from harness.run.plan import left_out, not_on_case
+from harness.settings import DEFAULT, QUICK, Settings, SolverSpec, default_specs
 from harness.suites import SUITES, identification_case
 from harness.suites.accuracy import COI_DELTA, accuracy
 from harness.suites.identification import identification, pair_observations
@@ -170,7 +170,7 @@ def _skip_params(measured: Measured) -> list[tuple[str, str, str]]:
     """The triples of an installed adapter that asv skips without a process (`skip_params`): a
     (solver, config) pair the harness does not run (e.g. scipy-odeint with batch=stacked), every
     triple of a forward case that `measured` does not run on, and a spec that the planner leaves
-    off the case measured (`harness.plan.not_on_case`, e.g. a PINN config not made for networks
+    off the case measured (`harness.run.plan.not_on_case`, e.g. a PINN config not made for networks
     on a network). A case that could not be built skips nothing: its benchmarks fail in setup. Adapters
     that are not installed are skipped in setup instead, with the reason ("skipped: torch not
     installed") in asv's output."""
@@ -196,7 +196,7 @@ COI_SKIP_PARAMS = _skip_params(COI)
 def spec_for(case: str, solver: str, config: str, measured: Measured = FORWARD) -> SolverSpec:
     """The harness's spec for a parameter triple; NotImplementedError (asv: skipped) when the adapter
     is not installed, the pair is not one the harness runs, `measured` does not run on the case or
-    the planner leaves the spec off the case measured (`harness.plan.not_on_case`); RuntimeError
+    the planner leaves the spec off the case measured (`harness.run.plan.not_on_case`); RuntimeError
     (asv: failed) when the case could not be built."""
     if SOLVERS.get(solver) is None:
         raise NotImplementedError(f"{solver}: {UNAVAILABLE.get(solver, 'not registered')}")
@@ -215,7 +215,7 @@ def spec_for(case: str, solver: str, config: str, measured: Measured = FORWARD) 
 
 def cached_entry(cache: dict, case: str, solver: str, config: str, measured: Measured = FORWARD) -> dict:
     """The `setup_cache` result for a parameter triple: skipped or failed as `spec_for` says,
-    skipped when the run's settings leave its suite out there (`harness.plan.left_out`),
+    skipped when the run's settings leave its suite out there (`harness.run.plan.left_out`),
     RuntimeError (asv: failed) when its preparation failed."""
     spec = spec_for(case, solver, config, measured)
     entry = cache.get((case, solver, config))

@@ -17,10 +17,10 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from harness.store import atomic_write
 from harness.usage import raise_if_interrupted
 from harness.versions import library_versions
 from solvers import plugin_distribution
+from solvers.atomic import atomic_write
 from solvers.base import AbstractSolver, FitReport
 from systems.cases import case_record
 

@@ -20,7 +20,7 @@ import pandas as pd
 
 from solvers.atomic import atomic_write
 
-__all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "atomic_write", "unit_key"]
+__all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "unit_key"]
 
 # The columns that name a unit of work; every row carries them.
 UNIT_COLUMNS = ("suite", "case", "solver", "config", "variant", "seed")

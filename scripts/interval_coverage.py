@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.paired import RUN_TO_RUN, ratio_interval, verdict_label
-from harness.sections import suite_frames
+from harness.measure.paired import RUN_TO_RUN, ratio_interval, verdict_label
+from harness.report.frames import suite_frames
+from harness.report.verdicts import AGREE, FLIP, compare_runs, run_to_run_sigma
 from harness.store import RowStore
-from harness.verdict_table import AGREE, FLIP, compare_runs, run_to_run_sigma
 
 
 def _frames(folder: Path, run_to_run: float) -> dict:

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import argparse
 
-from harness import metrics
-from harness.timing import blas_threads, time_call
+from harness.measure import metrics
+from harness.measure.timing import blas_threads, time_call
 from solvers import make_solver
 from systems.cases import CASES, standard_grid
 from systems.model import relative_angles

@@ -16,8 +16,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 from matplotlib.patches import FancyArrowPatch, Rectangle
 
-from harness.paired import CONFIDENCE, SAMPLE_S, TIE_FACTOR
-from harness.runs import DEFAULT
+from harness.measure.paired import CONFIDENCE, SAMPLE_S, TIE_FACTOR
+from harness.settings import DEFAULT
 
 PINN, RIVAL, WARM = "#d1495b", "#30638e", "#bbbbbb"
 OUT = Path(__file__).resolve().parents[1] / "docs" / "img" / "timing-protocol.svg"

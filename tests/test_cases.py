@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import systems.cases
-from harness import metrics
+from harness.measure import metrics
 from systems.cases import (
     CASES,
     IDENTIFICATION_PAIRS,

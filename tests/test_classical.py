@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import THREE_MACHINES, check_points_as_solves, max_rel
 
-from harness import metrics
+from harness.measure import metrics
 from solvers import make_solver
 from solvers.base import SolveError
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid
@@ -179,7 +179,7 @@ def test_machine_count_mismatch_names_obs_delta(name):
 def test_identify_at_ode45_tolerances(name):
     """rtol 1e-3: the finite-difference Jacobian needs a step of sqrt(rtol), not scipy's 1.5e-8
     (with it scipy-odeint was off by 18 % on this pair)."""
-    from harness.runs import DEFAULT
+    from harness.settings import DEFAULT
     from systems.cases import IDENTIFICATION_PAIRS
 
     m, d = IDENTIFICATION_PAIRS[4]

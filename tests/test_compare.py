@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main
-from harness.compare import _frames, queries_in_both
+from harness.cli.compare import _frames, queries_in_both
 from harness.usage import EXIT_USAGE
 
 
@@ -70,7 +70,7 @@ def test_runs_that_share_neither_queries_nor_verdicts_are_one_line_and_exit_2(tm
 
 
 def test_update_readme_replaces_the_comparison_section_alone_and_refuses_a_readme_without_one(runs, tmp_path, capsys):
-    from harness.compare import COMPARE_END, COMPARE_START
+    from harness.cli.compare import COMPARE_END, COMPARE_START
 
     readme = tmp_path / "README.md"
     readme.write_text(f"intro\n{COMPARE_START}\nold\n{COMPARE_END}\nend\n")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from conftest import THREE_MACHINES, max_rel, per_pair, points_queries, require
 
-from harness import metrics
+from harness.measure import metrics
 from solvers import make_solver
 from solvers.base import SolveError
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE, Observations, standard_grid

@@ -1,5 +1,5 @@
 """The README's verdicts and the site's results pages are generated from the rows; configurations
-are named by one label function (`harness.labels.Labels`) in tables, plots and verdicts."""
+are named by one label function (`harness.report.labels.Labels`) in tables, plots and verdicts."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.cli import README_END, README_START, main
-from harness.compare import COMPARE_END, COMPARE_START, compare_block
-from harness.labels import Labels, split_items
-from harness.pages import GENERATED, readme_block, write_pages
-from harness.report import write_report
-from harness.sections import LADDER_HEADING
+from harness.cli import main
+from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
+from harness.cli.readme import README_END, README_START
+from harness.report.files import write_report
+from harness.report.labels import Labels, split_items
+from harness.report.markdown import LADDER_HEADING
+from harness.report.pages import GENERATED, readme_block, write_pages
 from harness.store import RowStore
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from harness.run import isolation
 from harness.store import RowStore
 
 ARGV = ["run", "--quick", "--case", "smib-inference", "--solver", "scipy-odeint", "--suite", "latency", "--threads", "1", "--progress", "off"]
@@ -131,7 +132,7 @@ def _workers(pid: int) -> list[int]:
     for child in _children().get(pid, []):
         try:
             with open(f"/proc/{child}/cmdline", "rb") as f:
-                if b"harness.isolation" in f.read():
+                if isolation.__name__.encode() in f.read():
                     found.append(child)
         except OSError:
             pass

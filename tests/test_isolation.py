@@ -1,4 +1,4 @@
-"""harness.isolation: a call in a fresh process, its result, its exception, its limits."""
+"""harness.run.isolation: a call in a fresh process, its result, its exception, its limits."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.isolation import Limits, OverLimit, call_isolated
+from harness.run.isolation import OverLimit, call_isolated
+from harness.settings import Limits
 
 
 def _pid_and_sum(a: int, b: int) -> tuple[int, int]:
@@ -76,7 +77,7 @@ def _running(pid: int) -> bool:
 # A child in a session of its own (as `call_isolated` starts one) with only the polling fallback, and
 # a process it started; the child prints both pids, and its parent waits for it (until killed).
 CHILD = """import os, subprocess, sys, threading, time
-from harness.isolation import _kill_group_when_orphaned
+from harness.run.isolation import _kill_group_when_orphaned
 grandchild = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
 threading.Thread(target=_kill_group_when_orphaned, args=(os.getppid(), 0.05), daemon=True).start()
 print(os.getpid(), grandchild.pid, flush=True)

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from conftest import THREE_MACHINES
 
+import solvers
 from harness import model_cache
-from harness.model_cache import cache_key, store_cached
-from harness.runner import fit_or_load
-from harness.runs import QUICK
+from harness.model_cache import cache_key, fit_or_load, store_cached
+from harness.settings import QUICK
 from solvers import make_solver
 from solvers.pinn.architecture import Architecture, init_theta
 from solvers.pinn.config import PinnConfig
@@ -347,3 +347,19 @@ def test_the_compiled_query_path_refuses_a_bad_file(saved):
     with pytest.raises(CorruptModelError, match="unreadable") as info:
         compiled_model(saved[0].with_suffix(""))
     assert str(info.value).startswith(str(saved[0]))
+
+
+def test_model_cache_key_covers_training_and_ignores_how_a_model_is_queried():
+    from harness.model_cache import TRAINING_LIBRARIES, cache_key
+    from harness.versions import library_versions
+
+    pytest.importorskip("jax")
+    base = solvers.make_solver("jax-pinn", SMIB_INFERENCE)
+    same = [solvers.make_solver("jax-pinn", SMIB_INFERENCE, **{key: value})
+            for key, value in (("query", "numba"), ("threads", 1), ("progress", False))]
+    assert {cache_key(s) for s in same} == {cache_key(base)}
+    other = [solvers.make_solver("jax-pinn", SMIB_INFERENCE, seed=1),
+             solvers.make_solver("jax-pinn", SMIB_INFERENCE, max_iterations=10),
+             solvers.make_solver("jax-pinn", SMIB_INFERENCE.with_params(0.3, 0.1))]
+    assert len({cache_key(s) for s in other} | {cache_key(base)}) == 4
+    assert set(library_versions(TRAINING_LIBRARIES)) >= {"numpy", "scipy", "jax"}

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import check_points_as_solves, per_pair
 
-from harness import metrics
+from harness.measure import metrics
 from harness.suites.identification import observations
 from solvers import make_solver
 from solvers.base import SolveError

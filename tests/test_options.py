@@ -113,7 +113,7 @@ def test_ints_become_floats_bounds_tuples_numpy_scalars_python():
 
 
 def test_sweep_json_bounds_arrive_as_tuples_and_validate():
-    from harness.sweep_spec import _frozen
+    from harness.run.sweep_spec import _frozen
 
     options = {k: _frozen(v) for k, v in {"m_bounds": [0.05, 1.5], "d_bounds": [0.01, 0.5]}.items()}
     assert make_solver("scipy-rk45", CASE, **options).options["m_bounds"] == (0.05, 1.5)

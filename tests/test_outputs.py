@@ -1,4 +1,4 @@
-"""What the harness writes besides rows: files with the mode the umask gives new files."""
+"""What the harness writes besides rows: whole files, with the mode the umask gives new files."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import stat
 
 import pytest
 
-from harness.store import RowStore, atomic_write
+from harness.store import RowStore
+from solvers.atomic import atomic_write
 
 KEY = {"suite": "s", "case": "c", "solver": "x", "config": "default", "variant": "", "seed": -1}
 
@@ -30,3 +31,11 @@ def test_written_files_get_the_mode_the_umask_gives_new_files(tmp_path, umask, m
     RowStore(tmp_path).record(KEY, [{**KEY, "v": 1}])
     assert {p.name: stat.S_IMODE(p.stat().st_mode) for p in tmp_path.iterdir()} == {
         "table.md": mode, "rows.jsonl": mode}
+
+
+def test_atomic_write_replaces_whole_files(tmp_path):
+    target = tmp_path / "a" / "table.md"
+    atomic_write(target, "one")
+    atomic_write(target, "two")
+    assert target.read_text() == "two"
+    assert [p.name for p in target.parent.iterdir()] == ["table.md"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from harness.paired import (
+from harness.measure.paired import (
     CLASSICAL_FASTER,
     PINN_FASTER,
     RUN_TO_RUN,

@@ -175,8 +175,8 @@ def test_pieces_map_clearing_times_onto_the_input_range(switched, case):
 
 
 def test_the_planner_runs_each_pinn_config_on_its_scenario(case):
-    from harness.plan import not_on_case
-    from harness.runs import DEFAULT, SolverSpec
+    from harness.run.plan import not_on_case
+    from harness.settings import DEFAULT, SolverSpec
 
     fault, step = SolverSpec("jax-pinn", "fault-marching", seed=0), SolverSpec("jax-pinn", "marching", seed=0)
     assert not_on_case(fault, case, DEFAULT) is None and not_on_case(step, CASES["wscc9"], DEFAULT) is None

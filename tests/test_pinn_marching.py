@@ -18,7 +18,7 @@ from pinn_helpers import (
     sampled_observations,
 )
 
-from harness.metrics import rel_l2
+from harness.measure.metrics import rel_l2
 from solvers import make_solver
 from solvers.pinn.architecture import Architecture, init_theta, start_guess
 from solvers.pinn.config import PinnConfig

@@ -15,7 +15,7 @@ from pinn_helpers import (
     sampled_observations,
 )
 
-from harness.metrics import rel_l2
+from harness.measure.metrics import rel_l2
 from solvers import make_solver
 from solvers.pinn.problems import identification_problem
 from systems.cases import SMIB_IDENTIFICATION, Observations

@@ -1,4 +1,4 @@
-"""The planner (`harness.plan`): make bench's selection of units is what it was before the planner
+"""The planner (`harness.run.plan`): make bench's selection of units is what it was before the planner
 read declarations; SMIB or network is the case's kind; capabilities are declared, and the
 declarations agree with the adapters' options."""
 
@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from harness.plan import FIT, Unit, left_out, not_on_case, plan
-from harness.runner import run_unit
-from harness.runs import DEFAULT, FULL, QUICK, SolverSpec, default_specs
+from harness.run.plan import FIT, Unit, left_out, not_on_case, plan
+from harness.run.runner import run_unit
+from harness.settings import DEFAULT, FULL, QUICK, SolverSpec, default_specs
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver
 from solvers.base import (
@@ -178,3 +178,44 @@ def test_make_bench_leaves_the_sweep_points_out_on_fault_cases_only_unless_named
     assert left_out(tight, step, latency, DEFAULT) is None
     assert left_out(default, fault, latency, DEFAULT) is None
     assert left_out(tight, fault, latency, replace(DEFAULT, fault_omit_marks=())) is None
+
+
+def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
+    from harness.run.plan import plan
+    from harness.settings import default_specs
+    from harness.suites import DEFAULT_SUITES, SUITES
+    from systems.cases import SMIB_INFERENCE as forward
+
+    specs = default_specs(["jax-pinn"], ["default"], replace(DEFAULT, seeds=(0,)))
+    units = {(unit.case.name, unit.spec.variant): list(unit.suites)
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES]).units}
+    assert units[("smib-identification", "")] == ["identification"]
+    assert ("smib-identification", "query=numba") not in units
+    # cct is listed for the step case too: its unit records it as skipped (fault cases only)
+    assert units[("smib-inference", "query=numba")] == ["accuracy", "cct", "latency", "work_precision"]
+    assert units[("smib-inference", "")] == ["accuracy", "cct", "latency", "verdict", "work_precision"]
+    # an adapter's own query options (scipy RK45's batch mode) likewise; diffrax's batch changes
+    # its identification's error control, so its variant identifies
+    specs = [SolverSpec("scipy-rk45", options=(("batch", "stacked"),)), SolverSpec("diffrax", options=(("batch", "vmap"),))]
+    units = {(unit.case.name, unit.spec.solver): list(unit.suites)
+             for unit in plan(specs, [forward], [SUITES[name] for name in DEFAULT_SUITES]).units}
+    assert ("smib-identification", "scipy-rk45") not in units
+    assert units[("smib-identification", "diffrax")] == ["identification"]
+
+
+def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
+    from harness.run.plan import plan
+    from harness.settings import default_specs
+    from harness.suites import SUITES
+    from systems.cases import CASES
+    from systems.cases import SMIB_INFERENCE as forward
+
+    settings = replace(DEFAULT, seeds=(0,), case_pinn_options={"wscc9": {"max_iterations": 90, "max_seconds": None}})
+    specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
+    units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings).units
+    budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_iterations") for u in units}
+    assert budget[("wscc9", "jax-pinn", "marching")] == 90
+    assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
+    assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
+    assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {
+        "max_iterations=90,max_seconds=None", "max_iterations=90,max_seconds=None,query=numba"}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import per_group, per_pair, points_queries
 
-from harness import metrics
+from harness.measure import metrics
 from solvers import make_solver
 from solvers.classical.numba_rk import NumbaRK
 from solvers.classical.pod_spline import ATOL_PER_RTOL

@@ -1,6 +1,7 @@
 """The runner and its row store: the resume rule (a unit of work is done when its completion is
 recorded), torn and bad lines, idempotent resume, Ctrl-C, and what `run` and `report` do with bad
-folders and files. Fast: a do-nothing adapter and a counting suite stand in for real ones."""
+folders and files; failures and missing dependencies as rows, the run going on. Fast: a do-nothing
+adapter and a counting suite stand in for real ones."""
 
 from __future__ import annotations
 
@@ -10,15 +11,17 @@ from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import solvers
 from harness.cli import main
-from harness.runner import run_suites
-from harness.runs import QUICK, SolverSpec
+from harness.report.files import write_report
+from harness.run.runner import run_suites
+from harness.settings import QUICK, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES, Suite
-from solvers.base import AbstractSolver
+from solvers.base import AbstractSolver, SolveError
 from systems.cases import CASES, SMIB_INFERENCE
 
 SETTINGS = replace(QUICK, cache_dir=None)
@@ -405,10 +408,64 @@ def test_a_declared_skip_is_not_a_failure(tmp_path, counting, monkeypatch, capsy
 
 
 def test_every_suite_is_a_module_that_registers_itself_and_the_cli_lists_them_all():
-    from harness.cli import _suite_names
+    from harness.cli.run import _suite_names
     from harness.suites import DEFAULT_SUITES
 
     assert list(SUITES) == _suite_names() == ["accuracy", "cct", "identification", "latency", "scaling", "verdict",
                                                "work_precision"]
     assert all(SUITES[name].run.__module__ == f"harness.suites.{name}" for name in SUITES)
     assert DEFAULT_SUITES == ("accuracy", "cct", "identification", "latency", "verdict", "work_precision")  # scaling alone
+
+
+class Exploding(AbstractSolver):
+    """Fits, then fails every query: the run must record it and go on."""
+
+    name = "exploding"
+
+    def _fit(self):
+        return None
+
+    def _solve(self, t, P1):
+        raise SolveError(f"exploding: failed at P1={P1[0]:g}")
+
+    def _identify(self, obs):
+        raise SolveError("exploding: cannot identify")
+
+
+@pytest.fixture
+def with_exploding(monkeypatch):
+    monkeypatch.setitem(solvers.SOLVERS, "exploding", Exploding)
+    monkeypatch.setitem(solvers.SOLVERS, "not-installed", None)
+    monkeypatch.setitem(solvers.UNAVAILABLE, "not-installed", "skipped: nothing not installed")
+
+
+def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_path, with_exploding):
+    store = RowStore(tmp_path)
+    specs = [SolverSpec("exploding"), SolverSpec("not-installed"), SolverSpec("casadi-cvodes")]
+    settings = replace(QUICK, cache_dir=None, throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=50,
+                       points_distinct_p1=5)
+    run_suites(specs, [SMIB_INFERENCE], ["accuracy", "latency"], settings, store, progress=False)
+    df = store.frame()
+    status = df.groupby(["solver", "suite"])["status"].first()
+    assert status["exploding", "fit"] == "ok"
+    assert status["exploding", "accuracy"].startswith("failed: SolveError: exploding: failed at P1=0.08")
+    assert status["not-installed", "latency"] == "skipped: nothing not installed"
+    ok = df[(df.solver == "casadi-cvodes") & (df.status == "ok")]
+    assert set(ok.suite) == {"fit", "accuracy", "latency"}
+    accuracy = ok[ok.suite == "accuracy"].set_index(["quantity", "against"])
+    assert accuracy.loc[("delta", "reference"), "rel_l2"] < 1e-2
+    assert accuracy.loc[("delta", "paper ode45 data"), "max_abs"] < 1e-2
+    latency = ok[ok.suite == "latency"]
+    assert set(latency["query"]) == {"grid 100x201", "1 trajectories x 201 times", "single point t1=10 s",
+                                     "50 single points, one call", "50 single points over 5 P1, one call"}
+    assert dict(zip(latency["query"], latency["distinct_p1"]))["50 single points over 5 P1, one call"] == 5
+    assert (latency["median_s"] > 0).all()
+    # every row of a unit of work carries that unit's wall time, at least what its queries took
+    timed = ok.groupby("suite")["work_s"]
+    assert (timed.nunique() == 1).all() and timed.first()["latency"] > latency["median_s"].sum()
+
+    markdown = write_report(store.rows(), tmp_path, {"threads": 2})
+    assert "casadi-cvodes default" in markdown and "Skipped or failed" in markdown
+    assert "Wall time of its units of work, minutes: smib-inference " in markdown
+    assert "skipped: nothing not installed" in markdown
+    assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()

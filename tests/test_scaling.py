@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
-from harness.scaling_tables import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
-from harness.sections import suite_frames
+from harness.report.frames import suite_frames
+from harness.report.scaling import break_even_by_n, exponents, log_log_slope, scaling_frame, scaling_table
 from harness.store import RowStore
 
 TINY = ["--suite", "scaling", "--case", "smib-inference", "wscc9", "--solver", "scipy-odeint", "--config", "default",
@@ -84,7 +84,7 @@ def test_bad_limits_are_one_line_errors(tmp_path):
 
 
 def test_scaling_settings_budget_pinns_by_iterations():
-    from harness.runs import DEFAULT, SCALING_PINN_OPTIONS
+    from harness.settings import DEFAULT, SCALING_PINN_OPTIONS
 
     settings = DEFAULT.for_scaling()
     assert settings.unit_limits == DEFAULT.scaling_unit_limits and settings.case_pinn_options == {}

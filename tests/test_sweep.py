@@ -13,11 +13,12 @@ from typing import ClassVar
 import pandas as pd
 import pytest
 
-from harness import sweep
-from harness.runner import Unit, run_unit_in_worker
-from harness.runs import Settings, SolverSpec
+from harness.cli import sweep
+from harness.measure.timing import pinned_threads
+from harness.run.plan import Unit
+from harness.run.runner import run_unit_in_worker
+from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
-from harness.timing import pinned_threads
 from solvers import SOLVERS
 from solvers.base import AbstractSolver
 from systems.cases import SMIB_INFERENCE
@@ -184,8 +185,7 @@ def test_a_grid_value_invalid_on_one_case_only_is_refused_before_any_run(tmp_pat
 
 
 def test_a_failed_run_exits_1_with_one_line_naming_it_and_its_rows(tmp_path, fake, monkeypatch, capsys):
-    from harness import executors
-
+    from harness.run import executors
     monkeypatch.setattr(executors, "joblib", lambda workers: executors.inline)  # in this process: the fake is here
     out = tmp_path / "out"
     assert _cli(str(_write(tmp_path, {"solver": fake, "grid": {"width": [5]}})), "--out", str(out)) == 1
@@ -289,8 +289,8 @@ def test_joblib_sweep(tmp_path, capsys):
 
 
 def test_failed_run_does_not_stop_the_sweep(tmp_path):
-    from harness import executors
-    from harness.runner import execute
+    from harness.run import executors
+    from harness.run.runner import execute
 
     units = sweep.parse_spec(CHEAP).units()
     bad = Unit(SMIB_INFERENCE, SolverSpec("casadi-cvodes", "default", (("atol", 1e-8), ("rtol", -1.0))),
@@ -347,8 +347,7 @@ def test_summary_statistics_over_seeds():
 
 
 def test_ctrl_c_stops_a_sweep_with_one_line_and_resume_finishes_it(tmp_path, monkeypatch, capsys):
-    from harness import executors
-
+    from harness.run import executors
     def interrupted_after_one_run(workers):
         def run(jobs, settings):
             yield from executors.inline(jobs[:1], settings)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from conftest import check_points_as_solves
 
-from harness import metrics
-from harness.runs import DEFAULT
+from harness.measure import metrics
+from harness.settings import DEFAULT
 from solvers import make_solver
 from solvers.base import SolveError
 from solvers.classical.trapezoid import HALF_CYCLE, STEPS

@@ -8,18 +8,21 @@ import math
 import numpy as np
 import pytest
 
-from harness.analysis import (
+from harness.report.files import write_report
+from harness.report.frames import suite_frames
+from harness.report.ladder import (
     COMPILED,
     GRID_QUERY,
     LITERATURE,
     POINT_QUERY,
     PYTHON_DRIVEN,
-    crossover_t1,
+    crossover,
     ladder,
+    ladder_table,
+    verdict_lines,
 )
-from harness.report import write_report
-from harness.sections import LADDER_HEADING, suite_frames
-from harness.verdict import crossover, ladder_table, verdict_lines
+from harness.report.markdown import LADDER_HEADING
+from harness.report.speedups import crossover_t1
 
 BASE = {"case": "smib-inference", "threads": 2, "status": "ok"}
 PINN = {**BASE, "solver": "toy-pinn", "config": "default", "variant": "", "trains": True, "compiled": False}
@@ -124,7 +127,8 @@ def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy(
     its classical rivals are judged by one measure, the COI-relative one when the rows hold it."""
     import pandas as pd
 
-    from harness.analysis import COI_DELTA, GRID_QUERY, ladder, verdict_rows
+    from harness.report.ladder import GRID_QUERY, ladder, verdict_rows
+    from harness.suites.accuracy import COI_DELTA
 
     base = {"case": "wscc9", "config": "default", "variant": "", "status": "ok"}
     pinn = {**base, "solver": "toy-pinn", "seed": 0, "trains": True}

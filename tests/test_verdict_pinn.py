@@ -14,8 +14,8 @@ import pytest
 
 import solvers
 from harness.cli import main
-from harness.plan import plan
-from harness.runs import QUICK, default_specs, parse_verdict_pinns
+from harness.run.plan import plan
+from harness.settings import QUICK, default_specs, parse_verdict_pinns
 from harness.store import RowStore
 from harness.suites import SUITES
 from harness.usage import EXIT_USAGE
@@ -81,12 +81,13 @@ RUN = """
 import sys
 from dataclasses import replace
 
-import harness.runs
+import harness.settings
 from harness.cli import main
 from harness.suites import _matching
 
-harness.runs.QUICK = replace(harness.runs.QUICK, cache_dir=None, verdict_seeds=(0, 1), verdict_rounds=1,
-                             verdict_pairs=3, throughput_sizes=(1,), t1_values_s=(10.0,), points_batch=0)
+harness.settings.QUICK = replace(harness.settings.QUICK, cache_dir=None, verdict_seeds=(0, 1),
+                                 verdict_rounds=1, verdict_pairs=3, throughput_sizes=(1,),
+                                 t1_values_s=(10.0,), points_batch=0)
 _matching._families = lambda case, settings: [("tiny-rival", "default", ())]
 sys.exit(main(sys.argv[1:]))
 """

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
-from harness.runs import QUICK
+from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
+from harness.report.verdicts import compare_runs, verdicts
+from harness.settings import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals, query_errors, verdict_queries
 from harness.suites.verdict import query_paths, verdict
-from harness.verdict_table import compare_runs, verdicts
 from solvers import SOLVERS, make_solver
 from systems.cases import SMIB_INFERENCE as CASE
 from tests.conftest import require
@@ -127,8 +127,7 @@ def test_two_runs_agree_flip_or_tie_in_one_and_compare_exits_1_on_a_flip(monkeyp
 
     import pandas as pd
 
-    from harness import compare
-
+    from harness.cli import compare
     def run(*labels):
         return {"verdict": pd.DataFrame([
             {"suite": "verdict", "case": "wscc9", "solver": "jax-pinn", "config": "marching", "variant": "",

@@ -3,7 +3,7 @@
 A row holds the measurement's own columns; the runner adds suite, case, solver, config, variant,
 seed and status, so every suite's rows form one tidy DataFrame. `Suite` says how the runner
 treats each: whether it needs a fitted solver, whether it repeats for every training seed, and
-whether it runs on a case of its own; `harness.plan` reads them.
+whether it runs on a case of its own; `harness.run.plan` reads them.
 
 A suite is one module of this package, `<name>.py`, that defines `SUITE = Suite("<name>", ...)`:
 `SUITES` is filled from every such module (modules whose names start with "_" are helpers), in the

@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from harness import metrics
-from harness.paired import warm_call_s
-from harness.runs import Settings
+from harness.measure import metrics
+from harness.measure.paired import warm_call_s
+from harness.settings import Settings
 from harness.suites.accuracy import off_training_grid
 from harness.suites.latency import queries
 from solvers import SOLVERS
@@ -197,7 +197,7 @@ class Rivals:
         return self._errors[key]
 
     def warm_call_s(self, candidate: Candidate, query: Query) -> float:
-        """Seconds of one warm call of `candidate` on `query` (`harness.paired.warm_call_s`: one
+        """Seconds of one warm call of `candidate` on `query` (`harness.measure.paired.warm_call_s`: one
         timed call only when the untimed first took over `SLOW_S`), measured once."""
         key = (candidate.label, query.name)
         if key not in self._seconds:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 from harness.model_cache import fit_or_load, load_cached
-from harness.runs import Settings
+from harness.settings import Settings
 from solvers.base import AbstractSolver
 
 __all__ = ["seed_models"]

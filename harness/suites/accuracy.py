@@ -4,15 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import metrics
-from harness.analysis import COI_DELTA
-from harness.runs import Settings
+from harness.measure import metrics
+from harness.settings import Settings
 from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
 from systems.reference import OFF_TRAINING, STABLE_CLEARING, reference, seed_reference
 from systems.stability import reference_cct
+
+# The quantity of the angles relative to the centre of inertia (systems without an infinite bus); the
+# verdicts of such a case compare at it (`harness.report.ladder.verdict_rows`).
+COI_DELTA = "delta - delta_COI"
 
 
 def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,

@@ -16,12 +16,12 @@ reference integrator).
 
 The CCT is the bracket's midpoint; a method whose trajectories are unstable at p1_min (or stable at
 p1_max) has no CCT inside the range (NaN, the row's `note` says which). The search is timed whole,
-warm, as the latency suite times a query (`harness.timing.time_call`; a search over
+warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
 `Settings.max_call_s` is timed once).
 
 Each row holds what its unit measures; the training cost of a surrogate is its unit's `fit` row,
 and the break-even, which needs the other adapters' searches, is computed by the report
-(`harness.cct_table`).
+(`harness.report.cct`).
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.runs import Settings
+from harness.measure.timing import time_call
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._seeds import seed_models
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case
 from systems.model import relative_angles
@@ -135,7 +135,7 @@ def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
 
 
 def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
-    """The figure's data (`harness.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
+    """The figure's data (`harness.report.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
     `TRAJECTORY_OFFSET_S` either side of the reference CCT `ref_cct` (s), clamped to the case's range;
     `traj_t` (n_t,) s; `traj_pred` and `traj_ref` (2, n_t, n): the adapter's and the reference's
     angles from the centre of inertia (rad), as lists. Not timed."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from solvers.base import AbstractSolver
 from systems.cases import SMIB, SMIB_IDENTIFICATION, Case, Observations, standard_grid
@@ -115,7 +115,7 @@ def identification(solver: AbstractSolver, case: Case, settings: Settings) -> li
     mean), wall time (s), standard errors (p.u.), 95 % intervals (p.u., NaN when the adapter has
     none) and whether the true values lie in them (None when there is no interval). Per-machine
     columns hold a number for one machine and a list for several. Which configs identify on which
-    cases is the planner's (`harness.plan`): it runs this suite only where the run identifies."""
+    cases is the planner's (`harness.run.plan`): it runs this suite only where the run identifies."""
     rows = []
     for pair_index, noise, data, draw in _runs(case, settings):
         m, d = truths(case, settings)[pair_index]

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.runs import Settings
+from harness.measure.timing import time_call
+from harness.settings import Settings
 from harness.suites._base import Suite
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 

@@ -16,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import metrics
-from harness.runs import Settings
+from harness.measure import metrics
+from harness.measure.timing import time_call
+from harness.settings import Settings
 from harness.suites._base import Suite
-from harness.timing import time_call
+from harness.suites.accuracy import COI_DELTA
 from solvers.base import AbstractSolver
 from systems.cases import Case, case_record
 from systems.model import relative_angles
@@ -101,7 +102,7 @@ def scaling(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     pred, ref = relative_angles(case, delta), relative_angles(case, ref_delta)
     return [{
         "machines": case.n, "n_trajectories": P1.size, "n_times": t.size, "horizon_s": case.t_final,
-        "quantity": "delta" if case.has_infinite_bus else "delta - delta_COI",
+        "quantity": "delta" if case.has_infinite_bus else COI_DELTA,
         "rel_l2": metrics.rel_l2(pred, ref), "max_abs": metrics.max_abs(pred, ref),
         "grid_first_s": first_s, "grid_median_s": grid.median_s, "grid_repeats": grid.repeats,
         "point_median_s": point.median_s, "point_repeats": point.repeats, "reference_s": ref_s, **work,

@@ -8,7 +8,7 @@ included), its fastest query path there (`query_paths`: the framework's evaluato
 numba one, the same weights) and its rival (`harness.suites._matching.Rivals.best`: the fastest point of a compiled classical
 adapter's precision sweep at least as accurate in the angles and the speeds). Then
 `Settings.verdict_rounds` rounds, each over every query and seed in turn, of
-`Settings.verdict_pairs` interleaved pairs of samples (`harness.paired.interleaved`): the samples
+`Settings.verdict_pairs` interleaved pairs of samples (`harness.measure.paired.interleaved`): the samples
 of one verdict come from moments minutes apart. A seed whose errors are not finite or whose error
 in the angles exceeds `Settings.verdict_gate` counts as a loss (the label "classical faster", as MLPerf counts a run
 that missed its target), as does, with the label "no rival" and no ratio, a query where no sweep
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.paired import (
+from harness.measure.paired import (
     CLASSICAL_FASTER,
     NO_RIVAL,
     RUN_TO_RUN,
@@ -34,7 +34,7 @@ from harness.paired import (
     verdict_label,
     warm_call_s,
 )
-from harness.runs import Settings
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._matching import Query, Rivals, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models

@@ -3,18 +3,26 @@ the single-time-point query at t1 = 10 s (the paper's two speed claims)."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
-from harness import metrics
-from harness.analysis import t1_column
-from harness.runs import Settings
+from harness.measure import metrics
+from harness.measure.timing import time_call
+from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites.latency import T1_S, queries
-from harness.timing import time_call
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
 from systems.reference import reference
+
+T1_COLUMN = re.compile(r"point_t1=(?P<t1>[0-9.e+-]+)_median_s")
+
+
+def t1_column(t1: float) -> str:
+    """The work-precision column of the median single-point time (s) at `t1` (s), which compiled
+    adapters record at every t1 (`T1_COLUMN` reads it back)."""
+    return f"point_t1={t1:g}_median_s"
 
 
 def _point(solver: AbstractSolver, case: Case, settings: Settings) -> dict:

@@ -1,0 +1,229 @@
+"""`swingbench sweep SPEC`: a grid of adapter options x seeds x cases, one accuracy run per point.
+
+The paper chose its network size, N_u and N_f by an "extensive investigation"; a sweep runs such a
+grid and writes one row per accuracy measurement of every run. Sweeps measure accuracy and
+training cost only: several runs share the machine's cores, so no query latency is measured here
+(the latency suite of `swingbench run` runs alone).
+
+SPEC is a JSON file of a grid over one adapter's options (format and validation: `harness.run.sweep_spec`).
+
+Each run is one unit of `harness.run.runner` (the runner of `swingbench run`: one row store, one
+resume rule, one thread-pinning helper, one progress bar): the adapter is built, fitted
+(`harness.model_cache.fit_or_load`: trained models come from the model cache unless --retrain) and its
+accuracy measured (`harness.suites.accuracy`), in a worker process pinned to 1 thread. Its rows are a
+`fit` row (fit_s, iterations, loss) and the accuracy rows, with the swept values as `p_<option>`
+columns and the grid point's index as `point`. A run that raises gives `failed: ...` rows and the
+sweep goes on.
+
+Executors (`harness.run.executors`, only the executor differs): by default joblib's loky backend with
+--workers processes of 1 thread each; with --scheduler ADDRESS an existing dask.distributed
+cluster (its workers should run 1 thread each, e.g. `dask worker ADDRESS --nthreads 1`, and have
+swingbench installed), with --dask-local a LocalCluster of --workers processes, 1 thread each.
+
+Exit status: 0 when every run was measured (a declared skip counts as measured), 1 when a unit of
+work failed (one line names the runs and where their rows are) or the executor lost some, 2 for a
+bad spec or option, 130 on Ctrl-C.
+
+Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
+finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
+sweep.md (per grid point and case: median and [min, max] over seeds of the relative L2 error of delta
+and omega against the DOP853 reference, median fit seconds, runs ok/failed) and metadata.json.
+
+This module imports only the standard library at the top: the CLI imports it to build its parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from harness.cli.options import (
+    add_case_file_options,
+    add_shared_options,
+    progress_setting,
+    register_file_cases,
+)
+from harness.run.sweep_spec import SweepSpec, load_spec, parse_spec, sweep_settings
+
+__all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "summary_table"]
+
+
+# ------------------------------------------------------------------------------------------ summary
+
+def summary_table(frame) -> Any:
+    """Per case and grid point: runs ok/failed, median and [min, max] over seeds of rel. L2 of delta
+    and omega against the reference, median fit seconds. A pandas DataFrame in grid order."""
+    import pandas as pd
+
+    if frame.empty:
+        return pd.DataFrame()
+    params = [c for c in frame.columns if c.startswith("p_")]
+    groups = ["case", "solver", "config", "point"]
+    accuracy = frame[frame["suite"] == "accuracy"]
+    runs = accuracy.groupby([*groups, "variant", "seed"], sort=False, dropna=False)["status"].agg(
+        lambda s: (s == "ok").all()).rename("ok").reset_index()
+    fits = frame[(frame["suite"] == "fit") & (frame["status"] == "ok")].reindex(columns=[*groups, "fit_s"])
+    table = runs.groupby(groups, sort=False).agg(runs_ok=("ok", "sum"), failed=("ok", lambda s: int((~s).sum())))
+    table = frame.groupby(groups, sort=False)[params].first().join(table, how="right")
+    table = table.join(fits.groupby(groups, sort=False)["fit_s"].median().rename("fit_s_median"), how="left")
+    good = accuracy[accuracy["status"] == "ok"].reindex(columns=[*groups, "quantity", "against", "rel_l2"])
+    good = good[good["against"] == "reference"]
+    for quantity in ("delta", "omega"):
+        stats = good[good["quantity"] == quantity].groupby(groups, sort=False)["rel_l2"].agg(
+            ["median", "min", "max"])
+        stats.columns = [f"{quantity}_rel_l2_{s}" for s in stats.columns]
+        table = table.join(stats, how="left")
+    table = table.reset_index().sort_values(["case", "point"], kind="stable")
+    return table.drop(columns=["point"]).reset_index(drop=True)
+
+
+def _markdown(table, meta: dict) -> str:
+    if table.empty:
+        return "No rows.\n"
+
+    def fmt(x: Any) -> str:
+        return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3g}"
+
+    keep = [c for c in table.columns if c in ("case", "solver", "config") or c.startswith("p_")]
+    shown = table[keep].copy()
+    shown.columns = [c.removeprefix("p_") for c in shown.columns]
+    shown["runs ok / failed"] = [f"{int(a)} / {int(b)}" for a, b in zip(table["runs_ok"], table["failed"])]
+    for quantity in ("delta", "omega"):
+        cols = [f"{quantity}_rel_l2_{s}" for s in ("median", "min", "max")]
+        shown[f"{quantity} rel. L2, median [min, max]"] = [
+            f"{fmt(m)} [{fmt(lo)}, {fmt(hi)}]" if not math.isnan(m) else ""
+            for m, lo, hi in table[cols].itertuples(index=False)]
+    shown["fit (s), median"] = [fmt(x) for x in table["fit_s_median"]]
+    header = (f"Sweep of {meta.get('date', '?')} on {meta.get('cpu', '?')}, commit {meta.get('commit', '?')}: "
+              f"{meta.get('runs', '?')} runs on {meta.get('executor', '?')}, 1 thread per run. Relative L2 on "
+              "the 100 x 201 grid against DOP853 at 1e-12, over seeds; fit seconds measured with other runs "
+              "sharing the cores (cached models report the cost recorded when trained). No latency is "
+              "measured in a sweep.\n\n")
+    return header + shown.to_markdown(index=False) + "\n"
+
+
+def write_outputs(store, out: Path, meta: dict) -> str:
+    """sweep.csv (every row, tidy) and sweep.md from `store`, atomically; returns the Markdown."""
+    import pandas as pd
+
+    from harness.store import UNIT_COLUMNS
+    from solvers.atomic import atomic_write
+
+    frame = pd.DataFrame(store.rows())
+    if not frame.empty:
+        # tidy: scalars only; list-valued measurements (whole trajectories) stay in rows.jsonl,
+        # list-valued swept options become their JSON text
+        listy = [c for c in frame.columns if frame[c].map(lambda v: isinstance(v, (list, tuple, dict))).any()]
+        frame = frame.drop(columns=[c for c in listy if not c.startswith("p_")]).assign(**{
+            c: frame[c].map(lambda v: json.dumps(v) if isinstance(v, (list, tuple)) else v)
+            for c in listy if c.startswith("p_")})
+        front = [c for c in (*UNIT_COLUMNS, "point") if c in frame.columns]
+        params = sorted(c for c in frame.columns if c.startswith("p_"))
+        rest = [c for c in frame.columns if c not in front and c not in params]
+        frame = frame[[*front, *params, *rest]]
+    atomic_write(out / "sweep.csv", frame.to_csv(index=False))
+    markdown = _markdown(summary_table(frame), meta)
+    atomic_write(out / "sweep.md", markdown)
+    return markdown
+
+
+# ---------------------------------------------------------------------------------------------- CLI
+
+HELP = "run a grid of adapter options x seeds x cases (accuracy and training cost, no latency)"
+EPILOG = """\
+SPEC (JSON):
+  {"solver": "torch-pinn", "config": "default", "cases": ["smib-inference"],
+   "seeds": [0, 1, 2], "grid": {"width": [10, 20], "n_f": [2000, 8000]},
+   "options": {"max_iterations": 500}}
+
+  solver    a registered adapter (required)
+  config    one of its named configs (default "default")
+  cases     case names (default ["smib-inference"])
+  seeds     integers, only for adapters that train (default [0])
+  grid      option -> non-empty list of values; runs = product(grid) x seeds x cases
+  options   option overrides fixed for every run
+  description  free text
+Keys of grid and options must be options of the adapter; "seed" and "threads" are set by the sweep.
+
+Each run builds the adapter, fits it (from the model cache unless --retrain) and measures accuracy
+on the 100 x 201 grid, in a worker process pinned to 1 thread. No latency is measured: runs share
+the cores (run `swingbench run --suite latency` alone for that). Rows are appended to
+OUT/rows.jsonl as runs finish; OUT/sweep.csv, OUT/sweep.md and OUT/metadata.json at the end."""
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the `sweep` sub-command to `subparsers` (from `ArgumentParser.add_subparsers`)."""
+    sweep = subparsers.add_parser(
+        "sweep", help=HELP, epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run SPEC's grid of option values x seeds x cases, one accuracy run per point, "
+                    "locally with joblib (loky, --workers processes of 1 thread) or on Dask.")
+    sweep.add_argument("spec", type=Path, metavar="SPEC", help="sweep specification, a JSON file (format below)")
+    sweep.add_argument("--workers", type=int, default=2,
+                       help="worker processes of 1 thread each, for joblib and --dask-local (default 2)")
+    add_shared_options(
+        sweep, out=Path("results/sweep"),
+        resume_help="keep OUT/rows.jsonl and run only the runs it does not record as complete (a failed run is a "
+                    "result: it is kept)",
+        scheduler_help="run on this dask.distributed scheduler (e.g. tcp://host:8786) instead of joblib; give its "
+                       "workers 1 thread each",
+        dask_local_help="run on a local dask.distributed cluster of --workers processes, 1 thread each")
+    add_case_file_options(sweep)
+    sweep.add_argument("--dry-run", action="store_true", help="validate SPEC, print the runs and exit")
+    return sweep
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """`swingbench sweep`: 0 when every run was measured, 1 when a unit of work failed (its rows
+    say why; one line names them) or the executor lost some (`--resume` runs them), 2 (a
+    `UsageError`) for a bad spec, 130 on Ctrl-C."""
+    from harness.usage import UsageError
+
+    if args.workers < 1:
+        raise UsageError("swingbench sweep: --workers must be >= 1")
+    register_file_cases(args, "sweep")  # SPEC's "cases" may name them
+    try:
+        spec = load_spec(args.spec)
+    except ValueError as exc:
+        raise UsageError(f"swingbench sweep: {exc}") from None
+    units = spec.units()
+    if args.dry_run:
+        for unit in units:
+            print(unit.label)
+        print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
+        return 0
+
+    from harness.cli.outcome import outcome
+    from harness.cli.results_folder import interrupted_message, open_results
+    from harness.provenance import metadata
+    from harness.run import executors
+    from harness.run.runner import execute
+    from solvers.atomic import atomic_write
+
+    store, contents = open_results(args.out, args.resume, "sweep", same={"spec": spec.as_json()},
+                                   overwrite=args.overwrite)
+    settings = sweep_settings(args.retrain)
+    executor = (f"dask scheduler {args.scheduler}" if args.scheduler else
+                f"dask LocalCluster, {args.workers} worker process(es)" if args.dask_local else
+                f"joblib loky, {args.workers} worker process(es)")
+    meta = {**metadata(1), "command": "sweep", "spec": spec.as_json(), "spec_file": str(args.spec),
+            "runs": len(units), "executor": executor, "workers": args.workers, "argv": getattr(args, "argv", sys.argv[1:])}
+    atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
+    done = contents.completed if contents else set()
+    print(f"[swingbench sweep] {len(units)} runs on {executor}"
+          + (f"; {len(done)} unit(s) of work already recorded" if done else ""), file=sys.stderr)
+    try:
+        with executors.choose(args.scheduler, args.dask_local, args.workers,
+                              local=executors.joblib(args.workers)) as run:
+            counts = execute(units, settings, store, run, progress=progress_setting(args), done=done)
+    except KeyboardInterrupt:
+        print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)
+        return 130
+    markdown = write_outputs(store, args.out, meta)
+    print(markdown)
+    print(f"[swingbench sweep] units of work: {counts['ok']} ok, {counts['skipped']} skipped, {counts['failed']} "
+          f"failed, {counts['lost']} lost to the executor; wrote {args.out}/", file=sys.stderr)
+    return outcome(store.rows(), store.path, counts["lost"])

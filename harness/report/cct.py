@@ -1,0 +1,158 @@
+"""The cct suite's tables (`harness.suites.cct`): every search of a fault case (`cct_table`) and the
+headline per fault case and PINN (`cct_headline`, the README's and the results index's).
+
+Within a case, a surrogate's rival is the fastest classical search whose CCT is at least as close
+to the reference's as the surrogate's, or within the bracket (1 ms) when the surrogate is: the
+bracket is the resolution every search narrows to. Break-even N* = training / (rival's search -
+surrogate's search) (`speedups.break_even`): the CCT searches after which training and N*
+surrogate searches cost no more than N* rival searches ("never" when the surrogate's search is not
+faster). A surrogate trained on one contingency answers that contingency: it pays off on its own
+only for N* <= 1.
+
+The verdict of a seed: the ratio of the medians (rival over surrogate, > 1: the surrogate is
+faster), a side faster only beyond `TIE_FACTOR` (1.2x) with the interquartile ranges of the two
+searches apart, otherwise tie; a seed whose CCT is more than `CCT_GATE_S` (5 ms) off counts as a
+loss. A side wins the headline only when every seed says so. Each search is timed warm by the cct
+suite on its own (median of repeats), not paired and interleaved as the verdict suite's queries are.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, PINN_FASTER, TIE, TIE_FACTOR
+from harness.report.format import fmt, latency_cell
+from harness.report.frames import label, ok, trained
+from harness.report.speedups import break_even
+
+__all__ = ["CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_table"]
+
+CCT_GATE_S = 5e-3  # s: a surrogate's CCT further than this from the reference's counts as a loss
+
+CCT_TITLE = ("Critical clearing time: each adapter's CCT to a bracket of 1 ms (the criterion: a machine more than "
+             "pi rad from the centre of inertia within the horizon, judged every 10 ms), its error against the "
+             "reference's (bisection to 1e-6 s on DOP853 at 1e-12), the warm time of the whole search (median ± half "
+             "the interquartile range) and, for a surrogate, its training and break-even against its rival: the "
+             "fastest classical search at least as close to the reference (or within the 1 ms bracket)")
+CCT_HEADLINE = ("Per fault case: the reference CCT; each classical adapter's CCT error and time to CCT (its fastest "
+                "configuration); the fastest classical search within the 1 ms bracket; each PINN's "
+                "CCT error, time to CCT and training (worst seed), its break-even in CCT searches against its rival "
+                "and the verdict over its seeds (a side faster only beyond 1.2x with the quartiles of the two "
+                "searches apart, on every seed; a CCT more than 5 ms off counts as a loss; searches timed warm, "
+                "each on its own)")
+
+
+def _frame(frames: dict) -> pd.DataFrame:
+    df = ok(frames.get("cct"))
+    if df.empty or "cct_s" not in df:
+        return pd.DataFrame()
+    seed = df["pinn_seed"].fillna(df["seed"]) if "pinn_seed" in df else df["seed"]
+    df = df.assign(label=label(df), model_seed=seed.astype(int), surrogate=trained(df).to_numpy())
+    fits = ok(frames.get("fit"))
+    own = pd.Series(math.nan, index=df.index)
+    if not fits.empty:
+        key = ["solver", "config", "variant", "seed"]
+        merged = df[key].merge(fits[[*key, "fit_s"]].drop_duplicates(key), on=key, how="left")
+        own = pd.Series(merged["fit_s"].to_numpy(), index=df.index)
+    fit_s = df["seed_fit_s"].fillna(own) if "seed_fit_s" in df else own
+    return df.assign(training_s=fit_s.where(df["surrogate"]))
+
+
+def _rival(classical: pd.DataFrame, error_s: float, bracket_s: float) -> pd.Series | None:
+    """The fastest classical search at least as close to the reference as `error_s` (s), or within
+    the bracket; None when there is none."""
+    close = classical[classical["cct_error_s"].abs() <= max(abs(error_s), bracket_s)]
+    return None if close.empty else close.loc[close["median_s"].idxmin()]
+
+
+def _break_even(classical: pd.DataFrame, surrogate: pd.Series) -> tuple[pd.Series | None, float]:
+    """A surrogate search's rival (`_rival`) and its break-even N* against it (NaN without one)."""
+    rival = _rival(classical, surrogate["cct_error_s"], surrogate["bracket_s"])
+    if rival is None:
+        return None, math.nan
+    return rival, break_even(surrogate["training_s"], rival["median_s"], surrogate["median_s"])
+
+
+def _seed_verdict(pinn: pd.Series, rival: pd.Series | None) -> str:
+    if not abs(pinn["cct_error_s"]) <= CCT_GATE_S:  # NaN (no CCT in the range) included
+        return CLASSICAL_FASTER
+    if rival is None:
+        return NO_RIVAL
+    ratio = rival["median_s"] / pinn["median_s"]
+    if ratio > TIE_FACTOR and pinn["q75_s"] < rival["q25_s"]:
+        return PINN_FASTER
+    if ratio < 1 / TIE_FACTOR and rival["q75_s"] < pinn["q25_s"]:
+        return CLASSICAL_FASTER
+    return TIE
+
+
+def _each_adapter(classical: pd.DataFrame) -> str:
+    """One cell: each classical adapter's fastest search (any config or variant), its CCT error and
+    time (ms), fastest first."""
+    fastest = classical.loc[classical.groupby("solver")["median_s"].idxmin()].sort_values("median_s")
+    return "; ".join(f"{r['solver']} {fmt(1e3 * r['cct_error_s'], 2)} / {fmt(1e3 * r['median_s'])}"
+                     if r["note"] == "" else f"{r['solver']} {r['note']}" for _, r in fastest.iterrows())
+
+
+def cct_table(frames: dict) -> pd.DataFrame:
+    """Every search of the run: per case, adapter and model seed, the CCT, the reference's, the
+    error, the search's time, solves and trajectories; for a surrogate its training (s) and its
+    break-even against its rival."""
+    df = _frame(frames)
+    if df.empty:
+        return df
+    rows = []
+    for _, case in df.groupby("case", sort=False):
+        classical = case[~case["surrogate"]]
+        for _, r in case.iterrows():
+            row = {"case": r["case"], "solver": r["label"], "seed": r["model_seed"] if r["surrogate"] else "-",
+                   "search": r["method"], "CCT (s)": fmt(r["cct_s"], 5), "reference CCT (s)": fmt(r["reference_cct_s"], 7),
+                   "CCT error (ms)": fmt(1e3 * r["cct_error_s"], 2) if r["note"] == "" else r["note"],
+                   "time to CCT (ms)": latency_cell(r), "solves": int(r["solves"]), "trajectories": int(r["trajectories"])}
+            if r["surrogate"]:
+                _, n_star = _break_even(classical, r)
+                row["training (s)"] = fmt(r["training_s"])
+                row["break-even N* (CCT searches)"] = "never" if n_star == math.inf else fmt(n_star)
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def cct_headline(frames: dict) -> pd.DataFrame:
+    """Per fault case and PINN configuration (its seeds on their fastest query path each): the
+    reference CCT, each classical adapter's CCT error and time (its fastest search), the fastest
+    classical search within the bracket, the PINN's CCT error, time to
+    CCT and training of its worst seed (the slowest search), its break-even and the verdict."""
+    df = _frame(frames)
+    if df.empty:
+        return df
+    rows = []
+    for name, case in df.groupby("case", sort=False):
+        classical = case[~case["surrogate"]]
+        best = _rival(classical, 0.0, float(case["bracket_s"].iloc[0]))
+        head = {"case": name, "reference CCT (s)": fmt(case["reference_cct_s"].iloc[0], 7),
+                "each classical adapter: CCT error / time to CCT (ms)": _each_adapter(classical),
+                "fastest classical within 1 ms": best["label"] if best is not None else "none",
+                "its time to CCT (ms)": latency_cell(best) if best is not None else "n/a"}
+        pinns = case[case["surrogate"]]
+        if pinns.empty:
+            rows.append({**head, "PINN": "none in this run"})
+            continue
+        for pinn, runs in pinns.groupby(pinns["solver"] + " " + pinns["config"], sort=False):
+            fastest = runs.loc[runs.groupby("model_seed")["median_s"].idxmin()]  # each seed's fastest path
+            verdicts, worst, worst_n = [], None, -math.inf
+            for _, r in fastest.iterrows():
+                rival, n_star = _break_even(classical, r)
+                verdicts.append(_seed_verdict(r, rival))
+                if worst is None or r["median_s"] > worst["median_s"]:
+                    worst, worst_n = r, n_star
+            label_ = verdicts[0] if len(set(verdicts)) == 1 else TIE
+            counts = ", ".join(f"{v} on {verdicts.count(v)} of {len(verdicts)}" for v in dict.fromkeys(verdicts))
+            errors = 1e3 * fastest["cct_error_s"]
+            rows.append({**head, "PINN": pinn, "seeds": len(fastest),
+                         "PINN CCT error (ms)": fmt(errors.iloc[errors.abs().argmax()], 2),
+                         "PINN time to CCT (ms)": latency_cell(worst), "training (s)": fmt(fastest["training_s"].max()),
+                         "break-even N* (CCT searches)": "never" if worst_n == math.inf else fmt(worst_n),
+                         "verdict": f"{label_} ({counts})"})
+    return pd.DataFrame(rows)

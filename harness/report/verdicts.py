@@ -1,0 +1,179 @@
+"""The verdict suite's rows -> the verdict of each case, PINN and query over its seeds, its tables
+and the comparison of two runs. Pure pandas, no measurement.
+
+A verdict over seeds: "PINN faster" when every seed's label is (each seed against the rival matched
+to its own accuracy), "classical faster" when every seed's is (a seed that missed the accuracy
+gate counts so), "no rival" when no seed had one, else "tie"; it quotes how many seeds say what
+and the worst seed for the PINN (the least ratio; a seed without a ratio, as a loss, first).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from harness.measure.paired import (
+    CLASSICAL_FASTER,
+    CONFIDENCE,
+    NO_RIVAL,
+    PINN_FASTER,
+    TIE,
+    TIE_FACTOR,
+    ratio_interval,
+)
+from harness.report.format import fmt
+from harness.report.frames import label, ok
+from harness.report.ladder import GRID_QUERY, POINT_QUERY
+
+__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "run_to_run_sigma",
+           "verdict_table", "verdicts"]
+
+# The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
+HEADLINE = (GRID_QUERY, "1 trajectories x 201 times", POINT_QUERY)
+AGREE, FLIP, TIE_IN_ONE = "agree", "FLIP", "tie in one run"
+RULE = (f"Ratio: the rival's median time over the PINN's (> 1: the PINN is faster), from paired samples "
+        f"taken interleaved in rounds minutes apart; 95 % interval by paired bootstrap. A side is called "
+        f"faster only when the whole interval lies beyond {TIE_FACTOR:g}x, and only when every seed says so; "
+        f"otherwise tie. The rival: the fastest point of a compiled classical solver's precision sweep at "
+        f"least as accurate as that seed's PINN in the angles (centre-of-inertia relative on the networks) and "
+        f"the speeds, on that query and off the training points; the PINN on its fastest query path there (its "
+        f"framework's evaluator or the compiled numba one). Figures of the worst seed for the PINN.")
+
+
+def headline(v: pd.DataFrame) -> pd.Series:
+    """Which verdicts (rows of `verdicts`) are the README's: the queries of `HEADLINE` and the
+    batches of points."""
+    return v["query"].isin(HEADLINE) | (v["kind"] == "points batch")
+
+
+def verdicts(frames: dict) -> pd.DataFrame:
+    """One row per case, PINN (spec without seed) and query, in the run's order: the overall
+    label, seeds by label, and the worst seed's rival, errors, medians, ratio and interval."""
+    rows = ok(frames.get("verdict"))
+    if rows.empty:
+        return pd.DataFrame()
+    rows = rows.assign(pinn=label(rows), _order=range(len(rows)))
+    out = []
+    for (case, pinn, query), g in rows.groupby(["case", "pinn", "query"], sort=False):
+        labels = g["label"].tolist()
+        n = len(labels)
+        if all(x == PINN_FASTER for x in labels):
+            overall = PINN_FASTER
+        elif all(x == CLASSICAL_FASTER for x in labels):
+            overall = CLASSICAL_FASTER
+        elif all(x == NO_RIVAL for x in labels):
+            overall = NO_RIVAL
+        else:
+            overall = TIE
+        ratios = g["ratio"] if "ratio" in g else pd.Series(np.nan, index=g.index)
+        worst = g.loc[ratios.fillna(-math.inf).idxmin()]
+        counts = ", ".join(f"{x} on {labels.count(x)} of {n}" for x in dict.fromkeys(labels))
+        out.append({"case": case, "pinn": pinn, "query": query, "kind": worst["kind"], "verdict": overall, "seeds": n, "by seed": counts,
+                    "worst seed": int(worst["pinn_seed"]), "path": worst.get("pinn_path", ""), "rival": worst.get("rival", ""),
+                    "pinn_rel_l2_delta": worst["pinn_rel_l2_delta"], "pinn_rel_l2_omega": worst["pinn_rel_l2_omega"],
+                    "rival_rel_l2_delta": worst.get("rival_rel_l2_delta", np.nan),
+                    "rival_rel_l2_omega": worst.get("rival_rel_l2_omega", np.nan),
+                    "pinn_median_s": worst.get("pinn_median_s", np.nan),
+                    "rival_median_s": worst.get("rival_median_s", np.nan),
+                    "ratio": worst.get("ratio", np.nan), "ratio_low": worst.get("ratio_low", np.nan),
+                    "ratio_high": worst.get("ratio_high", np.nan), "samples": worst.get("samples", np.nan),
+                    "note": worst.get("rivals_note", "") or "", "_order": g["_order"].min()})
+    return pd.DataFrame(out).sort_values("_order").drop(columns="_order").reset_index(drop=True)
+
+
+def _ratio(row: pd.Series, suffix: str = "") -> str:
+    ratio, low, high = (row[f"{key}{suffix}"] for key in ("ratio", "ratio_low", "ratio_high"))
+    return "-" if pd.isna(ratio) else f"{fmt(ratio, 2)}x [{fmt(low, 2)}, {fmt(high, 2)}]"
+
+
+def _ms(seconds: float) -> str:
+    return "-" if pd.isna(seconds) else fmt(1e3 * seconds)
+
+
+def _errors(row: pd.Series, side: str) -> str:
+    delta, omega = row[f"{side}_rel_l2_delta"], row[f"{side}_rel_l2_omega"]
+    return "-" if pd.isna(delta) else f"{fmt(delta)} / {fmt(omega)}"
+
+
+def _table(v: pd.DataFrame, with_case: bool) -> pd.DataFrame:
+    return pd.DataFrame([{**({"case": r["case"]} if with_case else {}), "query": r["query"], "PINN": r["pinn"],
+                          "PINN query path": str(r["path"] or "").replace("query=", "") or "-",
+                          "verdict": f"{r['verdict']} ({r['by seed']})",
+                          "ratio [95 % CI]": _ratio(r), "PINN ms": _ms(r["pinn_median_s"]),
+                          "rival": r["rival"] or r["note"], "rival ms": _ms(r["rival_median_s"]),
+                          "rel. L2 angles / speeds, PINN": _errors(r, "pinn"), "rel. L2, rival": _errors(r, "rival"),
+                          "samples": "-" if pd.isna(r["samples"]) else int(r["samples"])}
+                         for _, r in v.iterrows()])
+
+
+def verdict_table(frames: dict) -> pd.DataFrame | None:
+    """Every query's verdict of the run's (or a case's) rows (`verdicts`), as text."""
+    v = verdicts(frames)
+    return None if v.empty else _table(v, with_case=v["case"].nunique() > 1)
+
+
+def headline_table(frames: dict) -> pd.DataFrame | None:
+    """The verdicts of the README's queries (`headline`), every case."""
+    v = verdicts(frames)
+    if v.empty:
+        return None
+    v = v[headline(v)]
+    return None if v.empty else _table(v, with_case=True)
+
+
+def compare_runs(frames_a: dict, frames_b: dict) -> pd.DataFrame:
+    """Every verdict of run A beside run B's of the same case, PINN and query: both labels,
+    ratios and intervals, and whether they agree (the same label), one is a tie (`TIE_IN_ONE`)
+    or they flip (opposite sides)."""
+    a, b = verdicts(frames_a), verdicts(frames_b)
+    if a.empty or b.empty:
+        return pd.DataFrame()
+    both = a.merge(b, on=["case", "pinn", "query"], suffixes=(" A", " B"))
+    sides = {PINN_FASTER, CLASSICAL_FASTER}
+
+    def agreement(r: pd.Series) -> str:
+        la, lb = r["verdict A"], r["verdict B"]
+        if la == lb:
+            return AGREE
+        return FLIP if {la, lb} == sides else TIE_IN_ONE
+
+    return both.assign(agreement=both.apply(agreement, axis=1))
+
+
+def compare_table(frames_a: dict, frames_b: dict) -> pd.DataFrame:
+    """`compare_runs` as text: case, query, PINN, each run's verdict and ratio [95 % CI], agreement."""
+    c = compare_runs(frames_a, frames_b)
+    return pd.DataFrame([{"case": r["case"], "query": r["query"], "PINN": r["pinn"],
+                          "run A": f"{r['verdict A']}, {_ratio(r, ' A')}", "run B": f"{r['verdict B']}, {_ratio(r, ' B')}",
+                          "agreement": r["agreement"]} for _, r in c.iterrows()])
+
+
+def run_to_run_sigma(frames_a: dict, frames_b: dict) -> tuple[float, int]:
+    """(sigma, n): the standard deviation of log(ratio) from one run to the other beyond what each
+    run's paired samples show, from the n seed rows both runs timed (same case, PINN, query and
+    seed): with d the difference of the two log ratios and s_A, s_B the standard errors of each
+    within its run (the bootstrap alone, `ratio_interval(..., run_to_run=0)`, half its log width
+    over the normal quantile), E[d**2] = s_A**2 + s_B**2 + 2 sigma**2; sigma from the means, 0 when
+    the within-run spread explains all of it; (nan, 0) without such rows."""
+    z = float(stats.norm.ppf(0.5 + CONFIDENCE / 2))
+    key = ["case", "pinn", "query", "pinn_seed"]
+
+    def timed(frames: dict) -> pd.DataFrame:
+        rows = ok(frames.get("verdict"))
+        if rows.empty or "pinn_samples_s" not in rows:
+            return pd.DataFrame(columns=[*key, "log_ratio", "se"])
+        rows = rows[rows["pinn_samples_s"].map(lambda x: isinstance(x, list) and len(x) >= 2)]
+        intervals = [ratio_interval(p, r, run_to_run=0) for p, r in zip(rows["pinn_samples_s"], rows["rival_samples_s"])]
+        return pd.DataFrame({**{k: rows[k].to_numpy() for k in key[:-1] if k != "pinn"}, "pinn": label(rows).to_numpy(),
+                             "pinn_seed": rows["pinn_seed"].to_numpy(),
+                             "log_ratio": [math.log(r) for r, _, _ in intervals],
+                             "se": [math.log(high / low) / (2 * z) for _, low, high in intervals]})
+
+    both = timed(frames_a).merge(timed(frames_b), on=key, suffixes=("_a", "_b"))
+    if both.empty:
+        return math.nan, 0
+    excess = float(np.mean((both["log_ratio_a"] - both["log_ratio_b"]) ** 2) - np.mean(both["se_a"] ** 2 + both["se_b"] ** 2))
+    return math.sqrt(max(excess, 0.0) / 2), len(both)
