@@ -40,16 +40,17 @@ def test_the_readme_verdicts_are_what_the_report_writes_from_the_landed_rows():
 
 
 def test_a_readme_block_with_verdicts_leaves_the_single_timing_sentences_to_the_case_pages():
-    """The README's front door shows the matched, repeated verdicts only: the latency suite's
-    sentences (one timing a side) would contradict them, so they stay on the case pages under a
-    heading that says what they are."""
+    """The README's front door shows the matched, repeated verdicts only (their heat map and their
+    summary): the latency suite's sentences (one timing a side) would contradict them, so they stay
+    on the case pages under a heading that says what they are, beside the full verdict table."""
     results = ROOT / "results"
     rows = RowStore(results, create=False).read().rows
     meta = json.loads((results / "metadata.json").read_text(encoding="utf-8"))
     assert {row["suite"] for row in rows} >= {"verdict", "latency"}
     block = readme_block(rows, meta, ROOT / "README.md", ROOT / "docs" / "results", results)
-    assert "### Verdicts at matched accuracy" in block
+    assert "figures/verdicts.png" in block and "- **wscc9**" in block
     assert "fastest PINN" not in block and LADDER_HEADING not in block
+    assert "## Verdicts at matched accuracy" in (ROOT / "docs" / "results" / "index.md").read_text(encoding="utf-8")
     page = (ROOT / "docs" / "results" / "wscc9.md").read_text(encoding="utf-8")
     assert f"## {LADDER_HEADING}" in page and "fastest PINN" in page
 
@@ -58,7 +59,7 @@ def test_the_readme_comparison_of_two_runs_is_what_compare_writes():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     block = readme.split(COMPARE_START, 1)[1].split(COMPARE_END, 1)[0]
     run_a, run_b = (ROOT / source for source in re.findall(r"`([^`]+)/rows\.jsonl`", block))
-    assert block == compare_block(run_a, run_b, ROOT)
+    assert block == compare_block(run_a, run_b, ROOT, tables=False)
 
 
 def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:
@@ -144,3 +145,23 @@ def test_the_coverage_table_of_the_methods_page_is_the_rows_of_its_csv():
                 f"({r.b_inside_a_pct:.1f} %) | {r.agree} / {r.flip} / {r.tie_in_one} |"
                 for r in pd.read_csv(ROOT / "results" / "interval-coverage.csv").itertuples()]
     assert table == expected
+
+
+def _outside_generated(text: str) -> str:
+    """`text` without its generated blocks (between swingbench's start and end markers) and code."""
+    text = re.sub(r"<!-- swingbench:(\w+):start -->.*?<!-- swingbench:\1:end -->", "", text, flags=re.DOTALL)
+    return re.sub(r"```.*?```", "", text, flags=re.DOTALL)
+
+
+def test_the_readme_is_short_shows_the_verdicts_first_and_types_no_number():
+    """The front door: at most 120 lines, the verdicts' heat map within the first 30, no line over
+    120 characters and no number outside the generated blocks (inline code and link targets aside:
+    a number there is a name, not a figure)."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    lines = readme.splitlines()
+    assert len(lines) <= 120
+    assert any("figures/verdicts.png" in line for line in lines[:30])
+    prose = _outside_generated(readme)
+    assert [line for line in prose.splitlines() if len(line) > 120] == []
+    prose = re.sub(r"`[^`]*`", "", re.sub(r"\]\([^)]*\)", "]", prose))
+    assert re.findall(r"(?<![\w.-])\d[\d.,]*", prose) == []

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.lines import Line2D
 
+from harness.measure.paired import CLASSICAL_FASTER
 from harness.report.cct_plot import cct_plot
 from harness.report.frames import identification_data, label, ok, trained
 from harness.report.labels import Labels
@@ -242,7 +243,8 @@ SCALING_PLOTS = {"scaling_cost": scaling_cost_plot, "scaling_accuracy": scaling_
 def verdict_plot(frames: dict, names: Labels):
     """The headline verdicts as a heat map: log10 of the ratio rival / PINN (worst seed; blue:
     the PINN faster, red: classical), case and PINN by row, query by column, each cell's label and
-    ratio written in it; ties hatched."""
+    ratio written in it; ties hatched under their text; a loss without a ratio (the PINN over the
+    accuracy gate) drawn as the strongest loss."""
     v = verdicts(frames)
     v = v[headline(v)] if not v.empty else v
     if v.empty:
@@ -254,14 +256,20 @@ def verdict_plot(frames: dict, names: Labels):
     for (i, j), ratio in zip(at, v["ratio"]):
         grid[i, j] = np.log10(ratio) if ratio > 0 else np.nan
     bound = max(1.0, float(np.nanmax(np.abs(grid)))) if np.isfinite(grid).any() else 1.0
+    for (i, j), (_, r) in zip(at, v.iterrows()):
+        if np.isnan(grid[i, j]) and r["verdict"] == CLASSICAL_FASTER:
+            grid[i, j] = -bound
     fig, ax = plt.subplots(figsize=(1.9 * len(cols) + 3, 0.6 * len(rows) + 1.5))
     image = ax.imshow(grid, cmap="RdBu", vmin=-bound, vmax=bound, aspect="auto")
     for (i, j), (_, r) in zip(at, v.iterrows()):
-        text = r["verdict"] if np.isnan(r["ratio"]) else f"{r['ratio']:.2g}x\n{r['verdict']}"
-        dark = np.isfinite(grid[i, j]) and abs(grid[i, j]) > 0.6 * bound
-        ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
-        if r["verdict"] == "tie":
-            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="///", lw=0))
+        text = f"{r['verdict']}\n(accuracy gate)" if np.isnan(r["ratio"]) and r["verdict"] == CLASSICAL_FASTER \
+            else r["verdict"] if np.isnan(r["ratio"]) else f"{r['ratio']:.2g}x\n{r['verdict']}"
+        tie = r["verdict"] == "tie"
+        dark = not tie and np.isfinite(grid[i, j]) and abs(grid[i, j]) > 0.6 * bound
+        ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black", zorder=3,
+                bbox={"facecolor": "white", "alpha": 0.8, "lw": 0, "pad": 1} if tie else None)
+        if tie:
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="///", lw=0, zorder=2))
     ax.set_xticks(range(len(cols)), [c.replace(", one call", "") for c in cols], rotation=20, ha="right", fontsize=8)
     ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}" for case, pinn in rows], fontsize=8)
     fig.colorbar(image, ax=ax, label="log10(rival time / PINN time)")

@@ -28,8 +28,8 @@ from harness.report.format import fmt
 from harness.report.frames import label, ok
 from harness.report.ladder import GRID_QUERY, POINT_QUERY
 
-__all__ = ["AGREE", "FLIP", "HEADLINE", "compare_runs", "compare_table", "headline", "headline_table", "run_to_run_sigma",
-           "verdict_table", "verdicts"]
+__all__ = ["AGREE", "FLIP", "HEADLINE", "RULE_SHORT", "compare_runs", "compare_table", "headline", "headline_table",
+           "run_to_run_sigma", "verdict_summary", "verdict_table", "verdicts"]
 
 # The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
 HEADLINE = (GRID_QUERY, "1 trajectories x 201 times", POINT_QUERY)
@@ -41,6 +41,11 @@ RULE = (f"Ratio: the rival's median time over the PINN's (> 1: the PINN is faste
         f"least as accurate as that seed's PINN in the angles (centre-of-inertia relative on the networks) and "
         f"the speeds, on that query and off the training points; the PINN on its fastest query path there (its "
         f"framework's evaluator or the compiled numba one). Figures of the worst seed for the PINN.")
+
+
+RULE_SHORT = (f"A side wins only where the whole 95 % interval of the ratio (rival time over PINN time, from paired "
+              f"samples) lies beyond {TIE_FACTOR:g}x on every seed, against the fastest "
+              f"compiled classical solver at least as accurate; otherwise tie.")
 
 
 def headline(v: pd.DataFrame) -> pd.Series:
@@ -177,3 +182,37 @@ def run_to_run_sigma(frames_a: dict, frames_b: dict) -> tuple[float, int]:
         return math.nan, 0
     excess = float(np.mean((both["log_ratio_a"] - both["log_ratio_b"]) ** 2) - np.mean(both["se_a"] ** 2 + both["se_b"] ** 2))
     return math.sqrt(max(excess, 0.0) / 2), len(both)
+
+
+def verdict_summary(frames: dict) -> str:
+    """The answer in a few bullets, from the verdicts (`verdicts`): per case, how many queries each
+    side wins and by how much (the range of the worst seed's ratio), the ties, where the PINN wins,
+    and the PINN's error in the angles; "" without verdicts."""
+    v = verdicts(frames)
+    if v.empty:
+        return ""
+    out = []
+    for case, g in v.groupby("case", sort=False):
+        parts = []
+        for name, side in ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the solver wins"), (TIE, "a tie on")):
+            won = g[g["verdict"] == name]
+            if won.empty:
+                continue
+            ratios = won["ratio"].dropna()
+            spread = "" if ratios.empty else f" ({fmt(ratios.min(), 2)}x" + (
+                "" if len(ratios) == 1 else f" to {fmt(ratios.max(), 2)}x") + ")"
+            gated = int(won["ratio"].isna().sum()) if name == CLASSICAL_FASTER else 0
+            if gated:
+                spread += f", {gated} of them over the accuracy gate"
+            where = ""
+            if name == PINN_FASTER:
+                where = ": " + ", ".join(won["query"].head(3)) + (", ..." if len(won) > 3 else "")
+            parts.append(f"{side} {len(won)}{spread}{where}")
+        rest = int((~g["verdict"].isin([PINN_FASTER, CLASSICAL_FASTER, TIE])).sum())
+        if rest:
+            parts.append(f"no rival on {rest}")
+        errors = g["pinn_rel_l2_delta"].dropna()
+        accuracy = "" if errors.empty else (f"; the PINN's rel. L2 in the angles {fmt(errors.min())}"
+                                            + ("" if errors.min() == errors.max() else f" to {fmt(errors.max())}"))
+        out.append(f"- **{case}**, {len(g)} queries: " + "; ".join(parts) + accuracy + ".")
+    return "\n".join(out) + "\n"
