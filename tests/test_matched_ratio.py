@@ -10,10 +10,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness.runs import QUICK
+from harness.runs import DEFAULT, QUICK
 from harness.suites._matching import Candidate, Query, Rivals, interpolated_s, margin
 from harness.suites.verdict import _row
 from harness.verdict_table import verdict_table
+from solvers.base import COARSE_RTOL, AbstractSolver
+from solvers.trapezoid import COARSE_STEPS, STEPS
 from systems.cases import SMIB_INFERENCE as CASE
 
 QUERY = Query("grid", "grid 2x3", np.linspace(0.0, 1.0, 3), np.array([0.1, 0.2]))
@@ -95,3 +97,15 @@ def test_a_sweep_point_whose_integration_fails_has_errors_of_nan_not_a_crash():
     rivals.case, rivals._errors = CASE, {}
     point = Candidate(FAMILY, {"rtol": 3e-2}, CASE, 1, _solver=Failing())  # type: ignore[arg-type]
     assert all(math.isnan(e) for e in rivals.errors(point, QUERY))
+
+
+def test_a_verdict_sweep_coarser_than_ode45_adds_coarser_fixed_steps_and_leaves_the_work_precision_sweep():
+    wide = (3e-2, 1e-2, 3e-3, *QUICK.wp_rtols)
+    assert [p["dt"] for p in AbstractSolver.step_sweep(STEPS, wide, COARSE_STEPS)] == [*COARSE_STEPS, *STEPS[:4]]
+    assert [p["dt"] for p in AbstractSolver.step_sweep(STEPS, (1e-2, 1e-4), COARSE_STEPS)] == [COARSE_STEPS[-1], STEPS[0]]
+    assert AbstractSolver.step_sweep(STEPS, QUICK.wp_rtols, COARSE_STEPS) == AbstractSolver.step_sweep(STEPS, QUICK.wp_rtols)
+    assert max(QUICK.wp_rtols) <= COARSE_RTOL
+
+    assert max(DEFAULT.verdict_rtols) == 3e-2 and sum(r > COARSE_RTOL for r in DEFAULT.verdict_rtols) == 3
+    sweep = [p["dt"] for p in AbstractSolver.step_sweep(STEPS, DEFAULT.verdict_rtols, COARSE_STEPS)]
+    assert sweep == [*COARSE_STEPS, *STEPS]  # every step of the work-precision sweep stays in the verdict's
