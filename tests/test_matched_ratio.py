@@ -109,3 +109,12 @@ def test_a_verdict_sweep_coarser_than_ode45_adds_coarser_fixed_steps_and_leaves_
     assert max(DEFAULT.verdict_rtols) == 3e-2 and sum(r > COARSE_RTOL for r in DEFAULT.verdict_rtols) == 3
     sweep = [p["dt"] for p in AbstractSolver.step_sweep(STEPS, DEFAULT.verdict_rtols, COARSE_STEPS)]
     assert sweep == [*COARSE_STEPS, *STEPS]  # every step of the work-precision sweep stays in the verdict's
+
+
+def test_a_gap_in_the_sweep_wider_than_3x_is_interpolated_across_and_the_note_says_so():
+    # margins 10 and 0.1: both points 10x from the PINN's error
+    rivals = _rivals([(1e-2, (1e-2, 1e-2), 1e-3), (1e-3, (1e-4, 1e-4), 4e-3)])
+    row = _verdict_row(rivals, 1e-3, 1e-3)
+    assert row["nearest_factor"] == pytest.approx(10.0)
+    assert row["matched_ratio"] == pytest.approx(row["ratio"] * 2e-3 / 4e-3)  # halfway: sqrt(1 ms * 4 ms)
+    assert "the nearest sweep point is 10x from the PINN's error, over 3x" in row["rivals_note"]

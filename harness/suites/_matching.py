@@ -31,12 +31,13 @@ from systems.cases import Case, standard_grid
 from systems.model import relative_angles
 from systems.reference import reference
 
-__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "Candidate", "Match", "Query", "Rivals", "interpolated_s", "margin",
+__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "NEAREST_WITHIN", "Candidate", "Match", "Query", "Rivals", "interpolated_s", "margin",
            "off_training_errors", "query_errors", "verdict_queries"]
 
 CHECK_TRAJECTORIES = 100
 CHECK_POINTS = 100
 SLOW_S = 0.5  # a candidate whose first call took longer is ranked by one warm call
+NEAREST_WITHIN = 3.0  # a sweep point within this factor of every PINN's error: the sweeps' aim (issue 36)
 OFF_TRAINING_P1 = 10  # P1 values of the off-training grid the accuracy is checked on (every ~10th)
 
 
@@ -144,7 +145,8 @@ class Match:
     """How tight a rival's match to a PINN is: `margin` (the rival's, `margin`), `nearest_factor`
     (>= 1: between the PINN's error and the nearest sweep point's in that point's binding metric,
     max(a, 1 / a)), `time_factor` (the family's seconds interpolated to margin 1 over the rival's,
-    `interpolated_s`; NaN without a coarser point to interpolate to) and `note` (why it is NaN)."""
+    `interpolated_s`; NaN without a coarser point to interpolate to) and `note` (why it is NaN, or
+    that the nearest point is over `NEAREST_WITHIN` away)."""
 
     margin: float
     nearest_factor: float
@@ -295,4 +297,6 @@ class Rivals:
                                                f"bound on the PINN's lead")
         seconds = self.warm_call_s(rival, query)
         at_one = interpolated_s((a, seconds), (margins[at - 1], self.warm_call_s(coarser, query)))
-        return Match(a, nearest, at_one / seconds)
+        far = (f"the nearest sweep point is {nearest:.3g}x from the PINN's error, over {NEAREST_WITHIN:g}x: the "
+               f"matched ratio spans a gap in the sweep") if nearest > NEAREST_WITHIN else ""
+        return Match(a, nearest, at_one / seconds, far)
