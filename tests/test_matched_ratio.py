@@ -118,3 +118,12 @@ def test_a_gap_in_the_sweep_wider_than_3x_is_interpolated_across_and_the_note_sa
     assert row["nearest_factor"] == pytest.approx(10.0)
     assert row["matched_ratio"] == pytest.approx(row["ratio"] * 2e-3 / 4e-3)  # halfway: sqrt(1 ms * 4 ms)
     assert "the nearest sweep point is 10x from the PINN's error, over 3x" in row["rivals_note"]
+
+
+def test_rk4s_verdict_sweep_reaches_past_its_work_precision_steps():
+    from solvers import make_solver
+    from solvers.numba_rk import RK4_COARSE_STEPS, RK4_STEPS
+
+    rk4 = make_solver("numba-rk", CASE, method="rk4")
+    assert [p["dt"] for p in rk4.precision_sweep(DEFAULT.verdict_rtols)] == [*RK4_COARSE_STEPS, *RK4_STEPS]
+    assert [p["dt"] for p in rk4.precision_sweep(DEFAULT.wp_rtols)] == list(RK4_STEPS)
