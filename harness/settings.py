@@ -112,7 +112,9 @@ class Settings:
     `swingbench run --verdict-pinn` sets any trained adapters, `parse_verdict_pinns`; the
     suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
     the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
-    than it needs to be; a fixed-step adapter sweeps its own steps), in
+    than it needs to be; from 3e-2, coarser than ode45's 1e-3, so that a sweep point lies within
+    3x of a PINN's error: ieee39's PINN speeds err by ~0.09, dopri's at rtol 1e-2 by 0.016 and at
+    3e-2 by 0.053, measured; a fixed-step adapter sweeps its own steps, `step_sweep`), in
     `verdict_rounds` rounds of `verdict_pairs` interleaved pairs of samples; a seed whose error in
     the angles (relative L2) is not finite or exceeds `verdict_gate` counts as a loss. `unit_limits` (None: none) runs each unit in a fresh process under a
     wall-clock and a memory limit (`harness.run.runner.run_unit`); a run of the scaling suite uses
@@ -157,7 +159,7 @@ class Settings:
     scaling_pinn_options: dict = field(default_factory=lambda: dict(SCALING_PINN_OPTIONS))
     verdict_pinns: tuple[tuple[str, tuple[str, ...], tuple[tuple[str, Any], ...]], ...] = (
         ("jax-pinn", ("default", "marching", "fault-marching"), ()),)
-    verdict_rtols: tuple[float, ...] = (1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8, 1e-9, 1e-10)
+    verdict_rtols: tuple[float, ...] = (3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 1e-8, 1e-9, 1e-10)
     verdict_seeds: tuple[int, ...] = (0, 1, 2)
     verdict_rounds: int = 2
     verdict_pairs: int = 4

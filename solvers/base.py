@@ -15,6 +15,7 @@ from systems.cases import FAULT_SCENARIO, KINDS, STEP_SCENARIO, Case, Observatio
 
 __all__ = [
     "ABLATION",
+    "COARSE_RTOL",
     "CONFIG_MARKS",
     "DEFAULT_CONFIG",
     "IDENTIFIES_NETWORKS",
@@ -45,6 +46,7 @@ CONFIG_MARKS = frozenset({IDENTIFIES_NETWORKS, LARGE_SYSTEMS, ABLATION, SWEEP_PO
 # The scenarios a config may be made for (`AbstractSolver.CASE_SCENARIOS`)
 SCENARIOS = (STEP_SCENARIO, FAULT_SCENARIO)
 
+COARSE_RTOL = 1e-3  # ode45's rtol: a work-precision sweep starts here, a verdict's reaches coarser (`step_sweep`)
 _INF = float("inf")
 _F64 = np.dtype(np.float64)
 _FAST_MAX = 16  # entries checked in pure Python; numpy's reductions cost ~1-2 us each below this
@@ -232,10 +234,15 @@ class AbstractSolver(abc.ABC):
         return [{"rtol": float(r), "atol": float(r) * 1e-3} for r in rtols]
 
     @staticmethod
-    def step_sweep(steps: Sequence[float], rtols: Sequence[float]) -> list[dict[str, Any]]:
+    def step_sweep(steps: Sequence[float], rtols: Sequence[float],
+                   coarse: Sequence[float] = ()) -> list[dict[str, Any]]:
         """The sweep of a fixed step: the coarsest len(rtols) of `steps` (s, coarsest first), as
-        many points as the run sweeps tolerances (a quick run's short sweep stays cheap)."""
-        return [{"dt": float(h)} for h in steps[:len(rtols)]]
+        many points as the run sweeps tolerances (a quick run's short sweep stays cheap). Each of
+        `rtols` coarser than `COARSE_RTOL` (a verdict's sweep reaching for a PINN's error) is
+        instead one of `coarse` (s, coarser than `steps`, coarsest first), the finest first."""
+        extra = min(len(coarse), sum(r > COARSE_RTOL for r in rtols))
+        head = tuple(coarse[len(coarse) - extra:])
+        return [{"dt": float(h)} for h in (*head, *steps[:len(rtols) - extra])]
 
     @classmethod
     def made_for(cls, config: str, kind: str, scenario: Scenario = STEP_SCENARIO) -> bool:

@@ -61,6 +61,11 @@ def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_poi
         assert r["rival_rel_l2_delta"] <= r["pinn_rel_l2_delta"] and r["rival_rel_l2_omega"] <= r["pinn_rel_l2_omega"]
         family = next(points for points in rivals.sweeps.values() if any(c.label == r["rival"] for c in points))
         at = [c.label for c in family].index(r["rival"])
+        assert r["rival_margin"] <= 1 <= r["nearest_factor"]
+        if at == 0:  # nothing coarser to interpolate to: the ratio is only an upper bound on the PINN's lead
+            assert np.isnan(r["matched_ratio"]) and "the coarsest sweep point is" in r["rivals_note"]
+        else:
+            assert np.isnan(r["matched_ratio"]) == ("gives no finite answer" in r["rivals_note"])
         if at > 0:  # the coarser point before it is not as accurate on this query
             coarser = rivals.errors(family[at - 1], queries[r["query"]])
             assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]

@@ -85,6 +85,7 @@ def verdicts(frames: dict) -> pd.DataFrame:
                     "rival_median_s": worst.get("rival_median_s", np.nan),
                     "ratio": worst.get("ratio", np.nan), "ratio_low": worst.get("ratio_low", np.nan),
                     "ratio_high": worst.get("ratio_high", np.nan), "samples": worst.get("samples", np.nan),
+                    **{key: worst.get(key, np.nan) for key in ("matched_ratio", "rival_margin", "nearest_factor")},
                     "note": worst.get("rivals_note", "") or "", "_order": g["_order"].min()})
     return pd.DataFrame(out).sort_values("_order").drop(columns="_order").reset_index(drop=True)
 
@@ -92,6 +93,15 @@ def verdicts(frames: dict) -> pd.DataFrame:
 def _ratio(row: pd.Series, suffix: str = "") -> str:
     ratio, low, high = (row[f"{key}{suffix}"] for key in ("ratio", "ratio_low", "ratio_high"))
     return "-" if pd.isna(ratio) else f"{fmt(ratio, 2)}x [{fmt(low, 2)}, {fmt(high, 2)}]"
+
+
+def _matched(row: pd.Series) -> str:
+    """The matched-accuracy ratio; where there is none but a rival, how much more accurate the
+    rival is (the conservative ratio then only an upper bound on the PINN's lead)."""
+    matched, margin = row["matched_ratio"], row["rival_margin"]
+    if not pd.isna(matched):
+        return f"{fmt(matched, 2)}x"
+    return "-" if pd.isna(margin) or margin <= 0 else f"- (rival {fmt(1 / margin, 2)}x more accurate)"
 
 
 def _ms(seconds: float) -> str:
@@ -104,10 +114,13 @@ def _errors(row: pd.Series, side: str) -> str:
 
 
 def _table(v: pd.DataFrame, with_case: bool) -> pd.DataFrame:
+    """The verdicts `v` as text; the column "matched ratio" (`_matched`) where the rows carry it
+    (rows written before it have no margin)."""
+    matched = bool(v["rival_margin"].notna().any())
     return pd.DataFrame([{**({"case": r["case"]} if with_case else {}), "query": r["query"], "PINN": r["pinn"],
                           "PINN query path": str(r["path"] or "").replace("query=", "") or "-",
                           "verdict": f"{r['verdict']} ({r['by seed']})",
-                          "ratio [95 % CI]": _ratio(r), "PINN ms": _ms(r["pinn_median_s"]),
+                          "ratio [95 % CI]": _ratio(r), **({"matched ratio": _matched(r)} if matched else {}), "PINN ms": _ms(r["pinn_median_s"]),
                           "rival": r["rival"] or r["note"], "rival ms": _ms(r["rival_median_s"]),
                           "rel. L2 angles / speeds, PINN": _errors(r, "pinn"), "rel. L2, rival": _errors(r, "rival"),
                           "samples": "-" if pd.isna(r["samples"]) else int(r["samples"])}

@@ -13,7 +13,8 @@ times <= t1): a single number at one time can be near zero and is no measure.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,16 +26,18 @@ from harness.settings import Settings
 from harness.suites.accuracy import off_training_grid
 from harness.suites.latency import queries
 from solvers import SOLVERS
-from solvers.base import SWEEP_POINT, AbstractSolver
+from solvers.base import SWEEP_POINT, AbstractSolver, SolveError
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
 from systems.reference import reference
 
-__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "Candidate", "Query", "Rivals", "off_training_errors", "query_errors", "verdict_queries"]
+__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "NEAREST_WITHIN", "Candidate", "Match", "Query", "Rivals", "interpolated_s", "margin",
+           "off_training_errors", "query_errors", "verdict_queries"]
 
 CHECK_TRAJECTORIES = 100
 CHECK_POINTS = 100
 SLOW_S = 0.5  # a candidate whose first call took longer is ranked by one warm call
+NEAREST_WITHIN = 3.0  # a sweep point within this factor of every PINN's error: the sweeps' aim (issue 36)
 OFF_TRAINING_P1 = 10  # P1 values of the off-training grid the accuracy is checked on (every ~10th)
 
 
@@ -118,6 +121,39 @@ def query_errors(solver: AbstractSolver, case: Case, query: Query,
     return max(at_query[0], off[0]), max(at_query[1], off[1])
 
 
+def margin(errors: Sequence[float], delta: float, omega: float) -> float:
+    """A sweep point's accuracy margin against a PINN with errors (`delta`, `omega`): the larger of
+    its errors (angles, speeds) over the PINN's, the binding metric's factor (<= 1: as accurate in
+    both; NaN or inf where an error is not finite)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.max(np.divide(np.asarray(errors, dtype=float), [delta, omega])))
+
+
+def interpolated_s(chosen: tuple[float, float], coarser: tuple[float, float]) -> float:
+    """Seconds at margin 1 on a family's work-precision curve: log(seconds) linear in log(margin)
+    between the (margin, seconds) of the `chosen` point (margin <= 1) and of the next `coarser`
+    one (margin > 1)."""
+    (a0, s0), (a1, s1) = chosen, coarser
+    if not 0 < a0 <= 1 < a1 < math.inf:
+        return math.nan
+    w = -math.log(a0) / (math.log(a1) - math.log(a0))
+    return math.exp((1 - w) * math.log(s0) + w * math.log(s1))
+
+
+@dataclass(frozen=True)
+class Match:
+    """How tight a rival's match to a PINN is: `margin` (the rival's, `margin`), `nearest_factor`
+    (>= 1: between the PINN's error and the nearest sweep point's in that point's binding metric,
+    max(a, 1 / a)), `time_factor` (the family's seconds interpolated to margin 1 over the rival's,
+    `interpolated_s`; NaN without a coarser point to interpolate to) and `note` (why it is NaN, or
+    that the nearest point is over `NEAREST_WITHIN` away)."""
+
+    margin: float
+    nearest_factor: float
+    time_factor: float
+    note: str = ""
+
+
 @dataclass
 class Candidate:
     """One point of a compiled classical adapter's precision sweep: `family` (adapter, config and
@@ -188,12 +224,22 @@ class Rivals:
         self._seconds: dict[tuple, float] = {}
 
     def errors(self, candidate: Candidate, query: Query) -> tuple[float, float]:
+        """(angles, speeds) of `candidate` on `query` (`query_errors`), measured once; NaN where
+        its integration fails (`SolveError`: a coarse step's Newton iteration on a fault case) or its
+        answer off the training points is not finite."""
         key = (candidate.accuracy_key(), query.name)
         if key not in self._errors:
-            off = self._errors.get((candidate.accuracy_key(), None))
-            if off is None:
-                off = self._errors[(candidate.accuracy_key(), None)] = off_training_errors(candidate.solver(), self.case)
-            self._errors[key] = query_errors(candidate.solver(), self.case, query, off)
+            failed = (math.nan, math.nan)
+            try:
+                off = self._errors.get((candidate.accuracy_key(), None))
+                if off is None:
+                    off = self._errors[(candidate.accuracy_key(), None)] = off_training_errors(candidate.solver(),
+                                                                                                self.case)
+                finite = bool(np.isfinite(off).all())
+                self._errors[key] = query_errors(candidate.solver(), self.case, query, off) if finite else failed
+            except SolveError:
+                self._errors[key] = failed
+                self._errors.setdefault((candidate.accuracy_key(), None), failed)
         return self._errors[key]
 
     def warm_call_s(self, candidate: Candidate, query: Query) -> float:
@@ -225,3 +271,32 @@ class Rivals:
         if not picks:
             return None, notes
         return min(picks, key=lambda p: p[0])[1], notes
+
+    def match(self, rival: Candidate, query: Query, delta: float, omega: float) -> Match:
+        """How tight `rival` (a point `best` chose) matches a PINN with errors (`delta`, `omega`)
+        on `query`, from the points of its family up to it (those `best` measured; the finer ones,
+        more accurate still, are not): margins, the nearest point's factor, and the time factor
+        that turns the conservative ratio into the matched one. A rival more accurate than needed
+        would be faster at matched accuracy, so the conservative ratio overstates the PINN's lead;
+        where the rival is its family's coarsest point (or the next coarser gives no finite
+        answer) there is nothing to interpolate to and that ratio is only an upper bound on it."""
+        points = self.sweeps[rival.family]
+        at = next(i for i, c in enumerate(points) if c is rival)
+        margins = [margin(self.errors(c, query), delta, omega) for c in points[:at + 1]]
+        factors = [max(a, 1 / a) for a in margins if 0 < a < math.inf]
+        nearest = min(factors, default=math.nan)
+        a = margins[at]
+        more = 1 / a if a > 0 else math.inf
+        if at == 0:
+            return Match(a, nearest, math.nan, f"the coarsest sweep point is {more:.3g}x more accurate: the ratio is "
+                                               f"an upper bound on the PINN's lead")
+        coarser = points[at - 1]
+        if not margins[at - 1] < math.inf:
+            return Match(a, nearest, math.nan, f"the next coarser sweep point ({coarser.label}) gives no finite answer "
+                                               f"and the rival is {more:.3g}x more accurate: the ratio is an upper "
+                                               f"bound on the PINN's lead")
+        seconds = self.warm_call_s(rival, query)
+        at_one = interpolated_s((a, seconds), (margins[at - 1], self.warm_call_s(coarser, query)))
+        far = (f"the nearest sweep point is {nearest:.3g}x from the PINN's error, over {NEAREST_WITHIN:g}x: the "
+               f"matched ratio spans a gap in the sweep") if nearest > NEAREST_WITHIN else ""
+        return Match(a, nearest, at_one / seconds, far)

@@ -36,7 +36,7 @@ from harness.measure.paired import (
 )
 from harness.settings import Settings
 from harness.suites._base import Suite
-from harness.suites._matching import Query, Rivals, off_training_errors, query_errors, verdict_queries
+from harness.suites._matching import Match, Query, Rivals, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models
 from solvers.base import AbstractSolver
 from systems.cases import Case
@@ -92,7 +92,15 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     """One row per query and seed (`pinn_seed`; the row's `seed` stays the unit's, whose rows
     these are): the PINN's errors (angles, speeds), its rival and the rival's
     errors, the paired samples (s per call) of both, their medians, the ratio rival / PINN with its
-    95 % interval, the label and the seed's training seconds and iterations."""
+    95 % interval, the label (of that ratio and interval) and the seed's training seconds and
+    iterations. Beside the ratio, conservative (its rival at least as accurate), the matched one
+    (`matched_ratio`): the ratio times the rival's family's warm seconds interpolated to the PINN's
+    accuracy in the binding metric over the rival's own (`Rivals.match`), with the rival's margin
+    (`rival_margin`, <= 1) and `nearest_factor` (>= 1: the PINN's error over the nearest sweep
+    point's, or its inverse). A rival more accurate than needed would be faster at matched
+    accuracy, so the conservative ratio overstates the PINN's lead; where the rival is its
+    family's coarsest point, `matched_ratio` is NaN and `rivals_note` says the ratio is only an
+    upper bound on that lead."""
     seeds = seed_models(solver, settings)
     rivals = _rivals(case, settings)
     plans: list[dict] = []
@@ -109,8 +117,9 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
                     "fit_s": fit_s, "fit_iterations": iterations}
             gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
             rival, notes = rivals.best(query, delta, omega) if gate else (None, [])
+            match = rivals.match(rival, query, delta, omega) if rival is not None else None
             plans.append({"base": base, "query": query, "pinn": pinn, "rival": rival, "notes": notes, "gate": gate,
-                          "samples": ([], [])})
+                          "match": match, "samples": ([], [])})
         print(f"[swingbench] verdict {case.name} {query.name}: rivals chosen", file=sys.stderr)
     for plan in plans:
         if plan["rival"] is not None:
@@ -139,7 +148,11 @@ def _row(plan: dict, settings: Settings, rivals: Rivals) -> dict:
     pinn_s, rival_s = plan["samples"]
     ratio, low, high = ratio_interval(pinn_s, rival_s)
     rival_delta, rival_omega = rivals.errors(rival, plan["query"])
-    return {**row, "gate": True, "rival": rival.label, "rival_rel_l2_delta": rival_delta,
+    match: Match = plan["match"]
+    if match.note:
+        row["rivals_note"] = "; ".join([*plan["notes"], match.note])
+    return {**row, "gate": True, "matched_ratio": ratio * match.time_factor, "rival_margin": match.margin,
+            "nearest_factor": match.nearest_factor, "rival": rival.label, "rival_rel_l2_delta": rival_delta,
             "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
             "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(plan["calls"]),
