@@ -21,7 +21,7 @@ from the same networks (dense output).
 from __future__ import annotations
 
 import functools
-from typing import Any, NamedTuple
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -29,18 +29,7 @@ import numpy as np
 
 from solvers.pinn.component import Component, phi_rate
 
-__all__ = ["Machines", "impedance", "query_function", "simulate_function"]
-
-
-class Machines(NamedTuple):
-    """The machines as the component sees them: mu (n,) s^2/rad, kappa (n,) s/rad, beta (n,) p.u.
-    (E / x'd), w (n,) complex p.u. (y E) and Z (n, n) complex p.u."""
-
-    mu: np.ndarray
-    kappa: np.ndarray
-    beta: np.ndarray
-    w: np.ndarray
-    Z: np.ndarray
+__all__ = ["chain", "impedance", "query_function", "simulate_function", "state_at", "substeps"]
 
 
 def impedance(network: Any) -> np.ndarray:
@@ -53,7 +42,7 @@ def impedance(network: Any) -> np.ndarray:
     return np.ascontiguousarray(splu(network.Y_bb.tocsc()).solve(rhs)[at])
 
 
-def _substeps(component: Component, h: float) -> tuple[int, float]:
+def substeps(component: Component, h: float) -> tuple[int, float]:
     count = max(1, int(np.ceil(h / component.domain.h - 1e-9)))
     return count, h / count
 
@@ -71,7 +60,7 @@ def _inputs(coef: Any, mu: Any, kappa: Any, p: Any, delta: Any, omega: Any, ts: 
     return jnp.stack([delta - th, omega - th_rate, coef[2], v, v_rate, coef[5], mu, kappa, p - kappa * th_rate])
 
 
-def _chain(component: Component, count: int, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any,
+def chain(component: Component, count: int, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any,
            delta0: Any, omega0: Any) -> tuple[Any, Any]:
     """One machine: (starts (count + 1, 2): (delta, omega) at the interval edges, inputs (count, 9))."""
     sizes, domain = component.sizes, component.domain
@@ -88,7 +77,7 @@ def _chain(component: Component, count: int, sub: float, theta: Any, coef: Any, 
     return jnp.concatenate([jnp.stack([delta0, omega0])[None], ends]), xs
 
 
-def _at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any, starts: Any,
+def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any, starts: Any,
         t: Any) -> Any:
     """(delta, omega) of one machine at time t in [0, h] of the step from its interval starts."""
     i = jnp.clip(jnp.floor(t / sub), 0, starts.shape[0] - 2)
@@ -107,8 +96,9 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
     the first `steps` (<= max_steps; the rest zero): interval starts (n_P, max_steps, count + 1, n,
     2), coefficients (n_P, max_steps, n, 6), Newton iterations and the last update's size
     (n_P, max_steps), and the largest excursion of the network inputs out of the domain, in units
-    of the box's half-width (<= 0 inside), with its column of `INPUTS` (n_P, max_steps) each."""
-    count, sub = _substeps(component, h)
+    of the box's half-width (<= 0 inside), with its column of `INPUTS` (n_P, max_steps) each.
+    machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n, n) complex p.u."""
+    count, sub = substeps(component, h)
     nodes = h * np.arange(1, collocation + 1) / collocation
     lo, hi = component.domain.bounds()
     mid, half = jnp.asarray((lo + hi) / 2.0), jnp.asarray((hi - lo) / 2.0)
@@ -118,8 +108,8 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
 
         def machine_nodes(c4, base, mu_k, kappa_k, p_k, d0, w0):
             coef = jnp.concatenate([base[:1], c4[:2], base[1:], c4[2:]])
-            starts, _ = _chain(component, count, sub, theta, coef, mu_k, kappa_k, p_k, d0, w0)
-            return jax.vmap(lambda t: _at(component, sub, theta, coef, mu_k, kappa_k, p_k, starts, t)[0])(nodes)
+            starts, _ = chain(component, count, sub, theta, coef, mu_k, kappa_k, p_k, d0, w0)
+            return jax.vmap(lambda t: state_at(component, sub, theta, coef, mu_k, kappa_k, p_k, starts, t)[0])(nodes)
 
         def linearised(c4, base, delta_start, omega_start):
             """The residual (2 s n,) and its Jacobian (2 s n, 4 n) in the coefficients c4 (n, 4): one
@@ -156,7 +146,7 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
             c4, iterations, size = jax.lax.while_loop(
                 lambda s: (s[1] < max_newton) & (s[2] > newton_tol), newton, (guess, 0, jnp.inf))
             coef = jnp.concatenate([base[:, :1], c4[:, :2], base[:, 1:], c4[:, 2:]], -1)  # (n, 6)
-            starts, xs = jax.vmap(lambda cf, m_k, k_k, p_k, d0, w0: _chain(component, count, sub, theta, cf, m_k, k_k,
+            starts, xs = jax.vmap(lambda cf, m_k, k_k, p_k, d0, w0: chain(component, count, sub, theta, cf, m_k, k_k,
                                                                            p_k, d0, w0))(coef, mu, kappa, p,
                                                                                          delta_start, omega_start)
             excess = jnp.max((jnp.abs(xs[..., 1:] - mid[1:]) / half[1:] - 1.0).reshape(-1, 8), axis=0)
@@ -181,12 +171,12 @@ def query_function(component: Component, h: float) -> Any:
     (2, n_P, n_t, n), delta and omega at the times t (s) from the simulated steps 0..last (a time
     beyond them: the last step's networks); points (..., last, which (n_s,) int, t (n_s,)) ->
     (2, n_s, n) at the pairs (P1 row which[i], t[i])."""
-    _, sub = _substeps(component, h)
+    _, sub = substeps(component, h)
 
     def one(theta, mu, kappa, p, starts, coef, last, t):
         i = jnp.clip(jnp.floor(t / h), 0, last).astype(jnp.int32)
         local = t - i * h
-        return jax.vmap(lambda m_k, k_k, p_k, s_k, c_k: _at(component, sub, theta, c_k, m_k, k_k, p_k, s_k, local),
+        return jax.vmap(lambda m_k, k_k, p_k, s_k, c_k: state_at(component, sub, theta, c_k, m_k, k_k, p_k, s_k, local),
                         (0, 0, 0, 1, 0))(mu, kappa, p, starts[i], coef[i])  # (n, 2)
 
     def grid(theta, mach, p, starts, coef, last, t):
