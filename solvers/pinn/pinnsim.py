@@ -117,13 +117,15 @@ class PinnSim(AbstractSolver):
         self.domain = Domain(h=options["net_h"])
         params = machine_parameters(case)
         P = case.powers(np.array([case.p1_min, case.p1_max]))
-        checks = {"mu": params["mu"], "kappa": params["kappa"], "p": P / params["beta"]}
+        checks = {"mu": params["mu"][None], "kappa": params["kappa"][None], "p": P / params["beta"]}  # (rows, n)
         for name, values in checks.items():
             low, high = getattr(self.domain, name)
-            if values.min() < low or values.max() > high:
-                k = int(np.argmax((values < low) | (values > high)) % case.n)
+            outside = ((values < low) | (values > high)).any(axis=0)
+            if outside.any():
+                k = int(np.argmax(outside))
                 raise ValueError(f"{self.name}: case {case.name!r} machine {k + 1} has {name} in "
-                                 f"[{values.min():.4g}, {values.max():.4g}], outside the trained domain [{low}, {high}]")
+                                 f"[{values[:, k].min():.4g}, {values[:, k].max():.4g}], outside the trained domain "
+                                 f"[{low}, {high}]")
 
     def _training(self) -> dict[str, Any]:
         keys = ("net_h", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
