@@ -79,6 +79,19 @@ def test_a_network_trained_once_loads_and_answers_on_a_case_it_was_not_trained_o
     np.testing.assert_allclose(points.delta, [traj.delta[0, 2], traj.delta[1, 1]], atol=1e-12)
 
 
+def test_the_state_on_an_interval_edge_does_not_depend_on_the_other_query_times(trained):
+    """XLA's fused arithmetic put t = 1.05 s (an edge of the 0.05 s intervals of a 0.2 s step) in
+    either interval, with a time in the other, inside a batch of times (it answered the state at
+    1.0 s there): every time is on the same side in any query now, and the state is continuous."""
+    solver = make_solver("pinnsim", "wscc9", **{**SMALL, "h": 0.2})
+    solver.fit()
+    alone = solver.solve(np.array([1.05]), 0.5).delta[0, 0]
+    batch = solver.solve(np.array([0.0, 1.05, 1.1]), 0.5).delta[0, 1]
+    np.testing.assert_allclose(batch, alone, rtol=0, atol=1e-12)
+    sides = solver.solve(np.array([1.05 - 1e-9, 1.05 + 1e-9]), 0.5).delta[0]
+    np.testing.assert_allclose(sides, np.tile(alone, (2, 1)), rtol=0, atol=1e-6)
+
+
 def test_a_newton_failure_names_the_step_and_p1(trained):  # trained: the network exists
     solver = make_solver("pinnsim", "wscc9", **{**SMALL, "max_newton": 1})
     solver.fit()

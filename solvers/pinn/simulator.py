@@ -77,16 +77,24 @@ def chain(component: Component, count: int, sub: float, theta: Any, coef: Any, m
     return jnp.concatenate([jnp.stack([delta0, omega0])[None], ends]), xs
 
 
+def _index(t: Any, length: float, last: Any) -> Any:
+    """The interval of length `length` that holds t, in [0, last] (int32): a time within 1e-9 of an
+    edge belongs to the later interval (XLA's fused arithmetic rounds t / length either side of an
+    integer otherwise, and the state on an edge is the same from both sides)."""
+    return jnp.clip(jnp.floor(t / length + 1e-9), 0, last).astype(jnp.int32)
+
+
 def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any, starts: Any,
         t: Any) -> Any:
     """(delta, omega) of one machine at time t in [0, h] of the step from its interval starts."""
-    i = jnp.clip(jnp.floor(t / sub), 0, starts.shape[0] - 2)
+    i = _index(t, sub, starts.shape[0] - 2)
     ts = i * sub
-    start = starts[i.astype(jnp.int32)]
+    tau = jnp.maximum(t - ts, 0.0)
+    start = starts[i]
     x = _inputs(coef, mu, kappa, p, start[0], start[1], ts)
-    phi, rate = phi_rate(component.sizes, component.domain, theta, x, t - ts)
+    phi, rate = phi_rate(component.sizes, component.domain, theta, x, tau)
     th, th_rate, _, _ = _local(coef, ts)
-    return jnp.stack([th + th_rate * (t - ts) + phi, th_rate + rate])
+    return jnp.stack([th + th_rate * tau + phi, th_rate + rate])
 
 
 @functools.lru_cache(maxsize=8)
@@ -174,7 +182,7 @@ def query_function(component: Component, h: float) -> Any:
     _, sub = substeps(component, h)
 
     def one(theta, mu, kappa, p, starts, coef, last, t):
-        i = jnp.clip(jnp.floor(t / h), 0, last).astype(jnp.int32)
+        i = _index(t, h, last)
         local = t - i * h
         return jax.vmap(lambda m_k, k_k, p_k, s_k, c_k: state_at(component, sub, theta, c_k, m_k, k_k, p_k, s_k, local),
                         (0, 0, 0, 1, 0))(mu, kappa, p, starts[i], coef[i])  # (n, 2)
