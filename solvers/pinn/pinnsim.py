@@ -1,0 +1,227 @@
+"""The PINNSim adapter (`pinnsim`, Stiasny, Zhang & Chatzivasileiadis, EPSR 235, 2024): one
+component PINN of a classical machine against a polynomial bus voltage (`solvers.pinn.component`),
+trained once for every machine of every case, coupled through the network at a fixed step
+(`solvers.pinn.simulator`).
+
+The component network is trained on what the options say (domain, architecture, data, seed,
+budget), not on the case: `fit` loads it from `component_dir` when a network of those options was
+trained before (its training seconds in the fit message), else trains and stores it there. A case
+whose machines fall outside the trained domain (mu, kappa or p on the machine's own beta = E / x'd)
+is refused when the adapter is built, naming the parameter.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, SolveError
+from solvers.identification import Estimate
+from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
+from solvers.pinn.component import INPUTS, Component, Domain, train
+from solvers.pinn.simulator import impedance, query_function, simulate_function
+from solvers.threads import configure_threads
+from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
+from systems.sparse_network import SparseNetwork
+
+__all__ = ["H_MAX", "STEP_SWEEP", "PinnSim", "PinnSimOptions", "machine_parameters"]
+
+H_MAX = 0.25  # s: the longest step; the component is tested over a step of this length
+STEP_SWEEP = (0.25, 0.1, 0.05, 0.025, 0.01)  # s: the work-precision sweep of h, coarsest first
+
+
+class PinnSimOptions(OptionSchema):
+    """h (s): the simulator's step, in (0, H_MAX]; collocation: points t_j = h j / s of a step's
+    network equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest
+    update is <= newton_tol (rad, p.u.). The component network: net_h (s) its time range, hidden
+    layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
+    each (angles, and speeds weighted by `rate_weight`, s) and `n_f` collocation points of the
+    equation weighted by `physics_weight` (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
+    component_dir: where trained networks are kept (None: train every fit)."""
+
+    h: PositiveFloat = 0.25
+    collocation: PositiveInt = 4
+    max_newton: PositiveInt = 20
+    newton_tol: PositiveFloat = 1e-9
+    net_h: PositiveFloat = 0.05
+    hidden_layers: PositiveInt = 2
+    width: PositiveInt = 24
+    trajectories: PositiveInt = 1000
+    times: PositiveInt = 6
+    n_f: NonNegativeInt = 2000
+    physics_weight: PositiveFloat = 1e-3
+    rate_weight: PositiveFloat = 0.05
+    max_iterations: PositiveInt = 1500
+    max_seconds: PositiveFloat | None = 900.0
+    seed: NonNegativeInt = 0
+    component_dir: str | None = ".cache/models/pinnsim-component"
+    threads: PositiveInt = 2
+
+
+def _bucket(count: int) -> int:
+    """The padded number of P1 a simulation compiles for: the next power of two up to 16, then the
+    next multiple of 16 (at most 2x the work; a handful of compiled shapes)."""
+    return 1 << (count - 1).bit_length() if count <= 16 else -(-count // 16) * 16
+
+
+def machine_parameters(case: Case) -> dict[str, np.ndarray]:
+    """Each machine on its own beta = E |y| (p.u.): mu = m / beta (s^2/rad), kappa = d / beta (s/rad),
+    beta, and w = y E (complex p.u.), from the case's carried network."""
+    network = case.network
+    assert isinstance(network, SparseNetwork)
+    y = np.asarray(network.y, np.complex128)
+    E = np.asarray(case.E, np.float64)
+    beta = E * np.abs(y)
+    return {"mu": np.asarray(case.m) / beta, "kappa": np.asarray(case.d) / beta, "beta": beta, "w": y * E}
+
+
+class PinnSim(AbstractSolver):
+    """PINNSim on JAX, float64: each machine a component PINN, the network solved at each step of h
+    by Gauss-Newton on its voltage polynomials. Network step cases with a carried network only.
+    Shapes as the contract: (len(P1), len(t), n) and (n_s, n)."""
+
+    name: ClassVar[str] = "pinnsim"
+    SCHEMA = PinnSimOptions
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}}
+    CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {"default": frozenset({NETWORK})}
+    CASE_SCENARIOS: ClassVar[dict[str, frozenset]] = {"default": frozenset({STEP_SCENARIO})}
+    # training takes minutes: make bench leaves it out unless named, as the other large-system configs
+    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {"default": frozenset({LARGE_SYSTEMS})}
+    trains: ClassVar[bool] = True
+    identifies: ClassVar[bool] = False
+    takes_threads: ClassVar[bool] = True
+    compiled: ClassVar[bool] = True
+    QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads", "component_dir"})
+
+    def precision_sweep(self, rtols: Sequence[float]) -> list[dict[str, Any]]:
+        """The step h, coarsest first, as many points as the run sweeps tolerances (`STEP_SWEEP`)."""
+        return [{"h": float(h)} for h in STEP_SWEEP[:len(rtols)]]
+
+    def _check_options(self) -> None:
+        options, case = self.options, self.case
+        if not 0.0 < options["h"] <= H_MAX:
+            raise ValueError(f"{self.name}: option h={options['h']!r} s is outside (0, h_max = {H_MAX}] s")
+        if options["collocation"] < 2:
+            raise ValueError(f"{self.name}: option collocation must be at least 2 (4 n unknowns, 2 n equations a point)")
+        if case.kind != NETWORK or case.network is None:
+            raise ValueError(f"{self.name} is made for multi-machine cases that carry their network; case "
+                             f"{case.name!r} is a {case.kind} case" + ("" if case.network is not None else " without one"))
+        self.domain = Domain(h=options["net_h"])
+        params = machine_parameters(case)
+        P = case.powers(np.array([case.p1_min, case.p1_max]))
+        checks = {"mu": params["mu"][None], "kappa": params["kappa"][None], "p": P / params["beta"]}  # (rows, n)
+        for name, values in checks.items():
+            low, high = getattr(self.domain, name)
+            outside = ((values < low) | (values > high)).any(axis=0)
+            if outside.any():
+                k = int(np.argmax(outside))
+                raise ValueError(f"{self.name}: case {case.name!r} machine {k + 1} has {name} in "
+                                 f"[{values[:, k].min():.4g}, {values[:, k].max():.4g}], outside the trained domain "
+                                 f"[{low}, {high}]")
+
+    def _training(self) -> dict[str, Any]:
+        keys = ("net_h", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
+                "max_iterations", "max_seconds", "seed")
+        return {key: self.options[key] for key in keys}
+
+    def component_key(self) -> str:
+        """The stem of the trained network's files: what it was trained on (the options of
+        `_training`, the domain) and the code and library versions that make it."""
+        source = b"".join((Path(__file__).parent / name).read_bytes() for name in ("component.py", "optim.py",
+                                                                                   "architecture.py"))
+        payload = json.dumps({"training": self._training(), "domain": repr(self.domain), "jax": jax.__version__,
+                              "numpy": np.__version__, "code": hashlib.sha256(source).hexdigest()}, sort_keys=True)
+        return "component-" + hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+    def _component(self) -> tuple[Component, str]:
+        options = self.options
+        path = None if options["component_dir"] is None else Path(options["component_dir"]) / self.component_key()
+        if path is not None and path.with_name(path.name + ".json").is_file():
+            component = Component.load(path)
+            if component.domain == self.domain:
+                return component, (f"component network loaded from {path} (trained once in "
+                                   f"{component.record.get('seconds', float('nan')):.1f} s)")
+        with threadpool_limits(limits=1, user_api="blas"):
+            component, result = train(self.domain, width=options["width"], depth=options["hidden_layers"],
+                                      seed=options["seed"], trajectories=options["trajectories"],
+                                      times=options["times"], n_f=options["n_f"],
+                                      physics_weight=options["physics_weight"], rate_weight=options["rate_weight"],
+                                      max_iterations=options["max_iterations"], max_seconds=options["max_seconds"])
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            component.save(path)
+        return component, f"component network trained in {component.record['seconds']:.1f} s ({result.message})"
+
+    def _fit(self) -> FitReport:
+        threads = configure_threads(self.options["threads"])
+        component, how = self._component()
+        self.component = component
+        params = machine_parameters(self.case)
+        self._beta = params["beta"]
+        with jax.enable_x64(True):
+            self._theta = jnp.asarray(component.theta)
+            self._machines = {"mu": jnp.asarray(params["mu"]), "kappa": jnp.asarray(params["kappa"]),
+                              "w": jnp.asarray(params["w"]), "Z": jnp.asarray(impedance(self.case.network))}
+        self._grid, self._points = query_function(component, self.options["h"])
+        self._simulate(self.options["h"], np.array([self.case.p1_max]), check=False)  # compile one shape
+        record = component.record
+        return FitReport(seconds=0.0, iterations=int(record.get("iterations", 0)), loss=float(record.get("loss", np.nan)),
+                         message="; ".join(filter(None, (threads, how))))
+
+    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int]:
+        """(p, starts, coef, the last step simulated) of every P1 over ceil(t_max / h) steps; SolveError for a Newton failure or
+        a machine that leaves the trained domain, naming the step and P1. One compiled function a
+        padded count of P1 (`_bucket`) serves every number of steps up to the horizon."""
+        h, options, case = self.options["h"], self.options, self.case
+        steps = max(1, int(np.ceil(t_max / h - 1e-9)))
+        run = simulate_function(self.component, h, max(steps, int(np.ceil(case.t_final / h - 1e-9))),
+                                options["collocation"], options["max_newton"], options["newton_tol"])
+        padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
+        p = case.powers(padded) / self._beta
+        with jax.enable_x64(True):
+            p_j = jnp.asarray(p)
+            starts, coef, iterations, size, excess, column = run(self._theta, self._machines, p_j,
+                                                                 jnp.asarray(case.delta0), jnp.asarray(case.omega0),
+                                                                 steps)
+        size, excess = np.asarray(size)[:P1.size, :steps], np.asarray(excess)[:P1.size, :steps]
+        newton = np.asarray(iterations)[:P1.size, :steps]
+        self.stats = {"steps": steps, "newton_mean": float(newton.mean()), "newton_max": int(newton.max())}
+        if not check:
+            return p_j, starts, coef, steps - 1
+        failed = ~(size <= options["newton_tol"])
+        if failed.any():
+            i, k = np.argwhere(failed)[0]
+            raise SolveError(f"{self.name}: Gauss-Newton did not converge at step {k + 1} (t = {k * h:g} s) for P1 = "
+                             f"{float(P1[i])!r} after {int(np.asarray(iterations)[i, k])} iterations: last update "
+                             f"{size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")
+        if (excess > 0).any():
+            i, k = np.argwhere(excess > 0)[0]
+            raise SolveError(f"{self.name}: at step {k + 1} (t = {k * h:g} s) for P1 = {float(P1[i])!r} a machine's "
+                             f"{INPUTS[int(np.asarray(column)[i, k])]} leaves the component's trained domain")
+        return p_j, starts, coef, steps - 1
+
+    def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p, starts, coef, last = self._simulate(float(t.max()), P1)
+        with jax.enable_x64(True):
+            both = np.asarray(self._grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(t)))
+        return both[0, :P1.size], both[1, :P1.size]
+
+    def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        values, which = np.unique(P1, return_inverse=True)
+        p, starts, coef, last = self._simulate(float(t.max()), values)
+        with jax.enable_x64(True):
+            both = np.asarray(self._points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(which),
+                                           jnp.asarray(t)))
+        return both[0], both[1]
+
+    def _identify(self, obs: Observations) -> Estimate:
+        raise ValueError(f"{self.name} does not identify m and d: its machines' parameters are inputs of one trained "
+                         "network, fixed by the case")
