@@ -70,13 +70,15 @@ def test_runs_that_share_neither_queries_nor_verdicts_are_one_line_and_exit_2(tm
 
 
 def test_update_readme_replaces_the_comparison_section_alone_and_refuses_a_readme_without_one(runs, tmp_path, capsys):
-    from harness.cli.compare import COMPARE_END, COMPARE_START
+    from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
 
     readme = tmp_path / "README.md"
     readme.write_text(f"intro\n{COMPARE_START}\nold\n{COMPARE_END}\nend\n")
     assert main(["compare", str(runs[0]), str(runs[1]), "--update-readme", str(readme)]) == 0
-    block = capsys.readouterr().out[:-1]  # print's newline
-    assert readme.read_text() == f"intro\n{COMPARE_START}{block}{COMPARE_END}\nend\n"
+    printed = capsys.readouterr().out[:-1]  # print's newline: the whole comparison, its tables too
+    summary = compare_block(runs[0], runs[1], tmp_path, tables=False)  # the README gets the summary alone
+    assert printed == compare_block(runs[0], runs[1], tmp_path) and summary != printed
+    assert readme.read_text() == f"intro\n{COMPARE_START}{summary}{COMPARE_END}\nend\n"
     readme.write_text("no section\n")
     with pytest.raises(SystemExit) as info:
         main(["compare", str(runs[0]), str(runs[1]), "--update-readme", str(readme)])

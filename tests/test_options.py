@@ -38,6 +38,8 @@ BAD_BOUNDS = [
 
 def bad_values(description: str) -> list[Any]:
     """Values an option described as `description` (`describe_option`) must refuse."""
+    if description.removeprefix("None or ").startswith("a valid "):  # free text (a folder): only non-text is wrong
+        return [[1e-3], {}, {"a": 1}, object(), 1.5, True]
     values = list(WRONG_TYPES)
     if not description.startswith("None or"):
         values.append(None)
