@@ -57,6 +57,7 @@ def test_the_same_seed_gives_the_same_split_model():
 @pytest.mark.parametrize(("config", "options", "words"), [
     ("marching", {"split": True}, "option split"),
     ("fault-marching", {"unstable_scale": 10.0}, "option unstable_scale"),
+    ("fault-marching", {"near_weight": 4.0}, "option near_weight"),
     ("fault-split", {"split_grading": 0.0}, "split_grading"),
     ("fault-split", {"screen_tol": -1.0}, "screen_tol"),
 ])

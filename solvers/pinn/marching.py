@@ -62,13 +62,13 @@ class Chain:
 
 def train_chain(train: TrainWindow, problem_of: Callable[[int], Problem], lengths: np.ndarray,
                 start_of: Callable[[np.ndarray], np.ndarray], walker: Evaluator, deadline: float,
-                windows_after: float = 0, label: str = "window") -> Chain:
+                windows_after: float = 0, label: str = "window", weight: float = 1.0) -> Chain:
     """Train the windows of lengths `lengths` (s) in turn. Window w's problem is `problem_of(w)`
     with each point's start state (`Problem.start_u`, `start_f`) the state the trained windows
     0..w-1 reach from `start_of(P1)` ((len(P1), 2, n) float64, window 0's start at each point's
-    scenario input), walked by `walker` (constants of its training). Each window gets an equal
-    share of the time left to `deadline` (`time.perf_counter()` s) among it, the chain's later
-    windows and `windows_after` windows' worth of training after the chain."""
+    scenario input), walked by `walker` (constants of its training). Each window gets a share of
+    the time left to `deadline` (`time.perf_counter()` s) among it, the chain's later windows and
+    `windows_after` windows' worth of training after the chain: `weight` windows' worth each."""
     prepared: list = []
     thetas, iterations, losses, messages = [], [], [], []
     count = lengths.size
@@ -81,7 +81,7 @@ def train_chain(train: TrainWindow, problem_of: Callable[[int], Problem], length
         problem = dataclasses.replace(problem, start_u=starts(problem.p_u) if problem.t_u.size else None,
                                       start_f=starts(problem.p_f))
         now = time.perf_counter()
-        window_deadline = now + (deadline - now) / (count - w + windows_after)
+        window_deadline = now + (deadline - now) * weight / (weight * (count - w) + windows_after)
         result = train(problem, w, window_deadline, f"{label} {w + 1}/{count}")
         thetas.append(result.theta)
         prepared.append(walker.prepare(result.theta))
@@ -114,22 +114,24 @@ def train_fault_on(config: PinnConfig, case: Case, arch: Architecture, edges: Ph
 
 def train_posts(config: PinnConfig, case: Case, arch: Architecture, edges: PhaseEdges, on: Chain,
                 trainer_of: TrainerOf, walker: Evaluator, deadline: float,
-                scales: list[float] | None = None) -> Chain:
+                scales: list[float] | None = None, weights: list[float] | None = None) -> Chain:
     """For each piece k of `edges.pieces`, the post-fault chain over (tau = t - t_c, t_c in the
     piece) with the post-fault network's residual, its first window starting from the trained
     fault-on chain `on`'s state at each point's t_c (`SwitchedEvaluator.clearing_state`), its
-    output layers starting `scales[k]` (default 1) times Glorot's; the chains joined, in
+    output layers starting `scales[k]` (default 1) times Glorot's, `weights[k]` (default 1) times
+    `max_iterations` and the time share of other windows a window; the chains joined, in
     parameter order."""
     w_on, w_post, pieces = edges.on.size - 1, edges.post.size - 1, edges.pieces.size - 1
     probe = SwitchedEvaluator(walker, arch, edges.on, edges.post, edges.pieces)
     probe.on.load(np.stack(on.thetas))
     physics = Physics.of_phase(case, "post")
     scales = [1.0] * pieces if scales is None else scales
-    posts = [train_chain(trainer_of(physics, w_on + k * w_post, scales[k], config.max_iterations),
+    weights = [1.0] * pieces if weights is None else weights
+    posts = [train_chain(trainer_of(physics, w_on + k * w_post, scales[k], round(weights[k] * config.max_iterations)),
                          functools.partial(phase_problem, config, case, edges, "post", p_mid=arch.p_mid, piece=k),
                          np.diff(edges.post), probe.posts[k].start_of, walker, deadline,
-                         windows_after=(pieces - 1 - k) * w_post,
-                         label=f"fit post-fault piece {k + 1}/{pieces} window")
+                         windows_after=sum(weights[k + 1:]) * w_post,
+                         label=f"fit post-fault piece {k + 1}/{pieces} window", weight=weights[k])
              for k in range(pieces)]
     return Chain.join(posts)
 

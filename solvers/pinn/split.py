@@ -14,8 +14,10 @@ first finds its own CCT and then trains the two sides apart:
    every `CRITERION_DT_S` s) window by window, stopped at the first window that crosses it. No
    solver data: the screen is the PINN's own physics residual;
 3. `split_pieces`: the pieces of clearing times graded towards the estimate on both sides, whose
-   chains `marching.train_posts` trains; the pieces above it (the unstable side) start with their
-   output layers `unstable_scale` times Glorot's.
+   chains `marching.train_posts` trains; the two pieces next to it, whose trajectories pass
+   closest to the unstable equilibrium, train `near_weight` times `max_iterations` (and time
+   share) a window; the pieces above it (the unstable side) start with their output layers
+   `unstable_scale` times Glorot's.
 
 Backend-free, as `marching`: the adapter passes its training and query functions in. Units: times
 in s, states (delta rad, omega rad/s).
@@ -176,7 +178,7 @@ def train_split(config: PinnConfig, case: Case, arch: Architecture, window_edges
     the model's `PhaseEdges` and the screen."""
     w_post, sides = window_edges.post.size - 1, 2 * config.pieces
     on = train_fault_on(config, case, arch, window_edges, trainer_of, walker, deadline,
-                        windows_after=sides * w_post / ON_WEIGHT, iterations=round(ON_WEIGHT * config.max_iterations))
+                        windows_after=(sides - 2 + 2 * config.near_weight) * w_post / ON_WEIGHT, iterations=round(ON_WEIGHT * config.max_iterations))
     now = time.perf_counter()
     screen = screen_cct(config, case, arch, window_edges, on, fit_window, walker,
                         now + SCREEN_SHARE * (deadline - now))
@@ -184,5 +186,6 @@ def train_split(config: PinnConfig, case: Case, arch: Architecture, window_edges
     edges = window_edges._replace(pieces=pieces)
     found = math.isfinite(screen.cct_s)
     scales = [config.unstable_scale if found and k >= config.pieces else 1.0 for k in range(sides)]
-    post = train_posts(config, case, arch, edges, on, trainer_of, walker, deadline, scales)
+    weights = [config.near_weight if found and k in (config.pieces - 1, config.pieces) else 1.0 for k in range(sides)]
+    post = train_posts(config, case, arch, edges, on, trainer_of, walker, deadline, scales, weights)
     return on, post, edges, screen
