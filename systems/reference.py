@@ -35,6 +35,10 @@ OFF_TRAINING = "reference, off the training points"
 # ... and of the reference on the clearing times of the standard grid below a fault case's reference
 # CCT (`systems.stability.reference_cct`): the stable trajectories, where an engineer reads them.
 STABLE_CLEARING = "reference, stable clearing times"
+# ... at or above it: the unstable trajectories, where a machine slips poles ...
+UNSTABLE_CLEARING = "reference, unstable clearing times"
+# ... and the stable / unstable classes of those clearing times (below the reference CCT / not).
+STABILITY_CLASSES = "reference CCT's classes"
 
 
 def reference(case: Case, t, P1) -> tuple[np.ndarray, np.ndarray]:

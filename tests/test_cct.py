@@ -21,12 +21,12 @@ from harness.run.plan import plan
 from harness.run.runner import run_unit
 from harness.settings import QUICK, SolverSpec
 from harness.suites import SUITES
-from harness.suites.accuracy import COI_DELTA, accuracy
+from harness.suites.accuracy import COI_DELTA, accuracy, stability_classes
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from solvers import SOLVERS
 from solvers.base import AbstractSolver, FitReport
-from systems.cases import CASES, Case
-from systems.reference import STABLE_CLEARING, reference
+from systems.cases import CASES, Case, standard_grid
+from systems.reference import STABILITY_CLASSES, STABLE_CLEARING, UNSTABLE_CLEARING, reference
 from systems.stability import ANGLE_LIMIT, reference_cct
 
 CASE = "kundur4-bus7-line7-8a"
@@ -243,3 +243,19 @@ def test_accuracy_on_a_fault_case_also_covers_the_stable_clearing_times_alone():
     stable = [row for row in rows if row["against"] == STABLE_CLEARING]
     assert [row["quantity"] for row in stable] == [COI_DELTA, "omega"]
     assert all(row["rel_l2"] == 0.0 for row in stable)
+    unstable = [row for row in rows if row["against"] == UNSTABLE_CLEARING]
+    assert [row["quantity"] for row in unstable] == [COI_DELTA, "omega"]
+    assert all(row["rel_l2"] == 0.0 for row in unstable)
+    (classes,) = [row for row in rows if row["against"] == STABILITY_CLASSES]
+    assert classes["classified_correct"] == 1.0 and classes["misclassified"] == 0 and classes["clearing_times"] == 100
+
+
+def test_accuracy_counts_the_clearing_times_a_surrogate_puts_on_the_wrong_side_of_the_cct():
+    """The surrogate's CCT lies SHIFT_S after the reference's: the grid's clearing times between the
+    two are unstable by the reference and stable by it."""
+    case = CASES["wscc9-bus8-line8-9"]
+    P1 = standard_grid(case)[1]
+    classes = stability_classes(_fitted(ShiftedSurrogate, case), case, P1, P1 < reference_cct(case))
+    between = P1[(P1 >= reference_cct(case)) & (P1 <= reference_cct(case) + SHIFT_S)]
+    assert between.size == 1 and classes["misclassified"] == 1
+    assert classes["classified_correct"] == 0.99 and classes["misclassified_t_c"] == f"{between[0]:.6g}"

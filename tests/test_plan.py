@@ -44,7 +44,9 @@ from systems.faults import FAULT_CASES
 # on the fault cases (`Settings.fault_omit_marks`): those entries skipped, their fits gone, every other
 # entry as it was (checked when recorded); and when pod-spline and reduced-pinn joined the registry,
 # with the `identifies` capability: their units added, every other entry as it was (checked when
-# recorded).
+# recorded); and when the PINNs' `fault-split` (marked an ablation of `fault-marching`) joined: its
+# units added to the full run, every other entry as it was; and when pinnsim joined: likewise (both re-recorded by
+# `tests/record_plan_before.py NAME`, which asserts it).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {
@@ -61,9 +63,9 @@ needs_every_adapter = pytest.mark.skipif(any(SOLVERS[name] is None for name in S
                                          reason="the recorded plans are of every adapter installed")
 
 
-@needs_every_adapter
-@pytest.mark.parametrize("run", list(RUNS))
-def test_make_bench_plans_the_units_it_planned_before(run):
+def planned(run: str):
+    """The plan of `run` (`RUNS`) and its works as the file lists them: [case, solver, config,
+    variant, seed, work, "run" or the skipped status]."""
     settings, suites, cases, configs = RUNS[run]
     result = plan(default_specs(None, configs, settings), [CASES[name] for name in cases],
                   [SUITES[name] for name in suites], settings)
@@ -74,6 +76,13 @@ def test_make_bench_plans_the_units_it_planned_before(run):
             key = unit.work_key(work)
             works.append([key["case"], key["solver"], key["config"], key["variant"], key["seed"], work,
                           skipped.get(work, "run")])
+    return result, works
+
+
+@needs_every_adapter
+@pytest.mark.parametrize("run", list(RUNS))
+def test_make_bench_plans_the_units_it_planned_before(run):
+    result, works = planned(run)
     assert works == [entry for entry in BEFORE[run] if entry[-1] != "no rows"]
     # what recorded no rows is not run now, and the plan says why
     not_run = {(s.case.name, s.spec.solver, s.spec.config, s.spec.variant, s.spec.key()["seed"], s.suite)

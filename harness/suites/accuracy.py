@@ -7,11 +7,19 @@ import numpy as np
 from harness.measure import metrics
 from harness.settings import Settings
 from harness.suites._base import Suite
+from harness.suites.cct import criterion_times
 from solvers.base import AbstractSolver
 from systems.cases import Case, standard_grid
 from systems.model import relative_angles
-from systems.reference import OFF_TRAINING, STABLE_CLEARING, reference, seed_reference
-from systems.stability import reference_cct
+from systems.reference import (
+    OFF_TRAINING,
+    STABILITY_CLASSES,
+    STABLE_CLEARING,
+    UNSTABLE_CLEARING,
+    reference,
+    seed_reference,
+)
+from systems.stability import is_unstable, reference_cct
 
 # The quantity of the angles relative to the centre of inertia (systems without an infinite bus); the
 # verdicts of such a case compare at it (`harness.report.ladder.verdict_rows`).
@@ -40,6 +48,16 @@ def _errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.nd
     return row
 
 
+def stability_classes(solver: AbstractSolver, case: Case, P1: np.ndarray, stable: np.ndarray) -> dict:
+    """How often `solver` puts fault case `case`'s clearing times P1 (s) on the reference's side of
+    the CCT (`stable`: P1 below it): the cct suite's criterion (`is_unstable`) on the adapter's
+    trajectories at its times (`criterion_times`)."""
+    wrong = is_unstable(case, solver.solve(criterion_times(case), P1).delta) == stable
+    return {"quantity": "stability", "against": STABILITY_CLASSES, "unit": "fraction of clearing times",
+            "classified_correct": float(1.0 - wrong.mean()), "misclassified": int(wrong.sum()),
+            "clearing_times": int(P1.size), "misclassified_t_c": " ".join(f"{x:.6g}" for x in P1[wrong])}
+
+
 def off_training_grid(case: Case) -> tuple[np.ndarray, np.ndarray]:
     """A grid away from a PINN's training data, which lie on t = 0 and the P1 edges of the standard
     grid: the 200 midpoints between its times (0.05 ... 19.95 s) x the 99 midpoints between its P1
@@ -56,7 +74,9 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
     hides or inflates the swings); the same on `off_training_grid` ("reference, off the training
     points"); on a fault case, the angles relative to the centre of inertia and the speeds also over
     the grid's clearing times below the reference CCT alone (`STABLE_CLEARING`: past it a machine
-    slips poles, and its angle error, growing without bound, dominates the whole grid's); delta also
+    slips poles, and its angle error, growing without bound, dominates the whole grid's) and over
+    those at or above it (`UNSTABLE_CLEARING`), and the share of the grid's clearing times the
+    adapter classifies as the reference CCT does (`stability_classes`, quantity "stability"); delta also
     against the paper's ode45 data when the case has them."""
     t, P1 = standard_grid(case)
     traj = solver.solve(t, P1)
@@ -84,6 +104,13 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
                     relative_angles(case, ref_delta[stable])),
             _errors("omega", STABLE_CLEARING, "rad/s", traj.omega[stable], ref_omega[stable]),
         ]
+        if not stable.all():
+            rows += [
+                _errors(COI_DELTA, UNSTABLE_CLEARING, "rad", relative_angles(case, traj.delta[~stable]),
+                        relative_angles(case, ref_delta[~stable])),
+                _errors("omega", UNSTABLE_CLEARING, "rad/s", traj.omega[~stable], ref_omega[~stable]),
+            ]
+        rows.append(stability_classes(solver, case, P1, stable))
     seed = seed_reference(case)
     if seed is not None:
         t_seed, p1_seed, delta_seed = seed

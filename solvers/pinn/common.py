@@ -10,6 +10,7 @@ hooks (`solvers.pinn.evaluator.MarchingEvaluator`).
 from __future__ import annotations
 
 import abc
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ from solvers.pinn.problems import (
     window_edges,
     window_problem,
 )
+from solvers.pinn.split import output_scaled, train_split
 from solvers.progress import progress_enabled
 from systems.cases import FAULT_SCENARIO, NETWORK, SMIB, STEP_SCENARIO, Observations, Scenario, case_record
 
@@ -127,14 +129,16 @@ class PinnSolver(AbstractSolver):
     CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {
         "default": frozenset({SMIB}), "paper": frozenset({SMIB}), "paper-two-outputs": frozenset({SMIB}),
         "two-outputs": frozenset({SMIB}), "marching": frozenset({NETWORK}), "fault-marching": frozenset({NETWORK}),
-        "marching-large": frozenset({NETWORK})}
+        "fault-split": frozenset({NETWORK}), "marching-large": frozenset({NETWORK})}
     # a fault case's switched phases (`PinnConfig.phases`) are the fault-marching config's alone
     CASE_SCENARIOS: ClassVar[dict[str, frozenset[Scenario]]] = {
         config: frozenset({FAULT_SCENARIO if options.get("phases") else STEP_SCENARIO})
         for config, options in CONFIGS.items()}
-    # the two-output networks weigh the paper's second formulation against its first
+    # the two-output networks weigh the paper's second formulation against its first; fault-split
+    # fault-marching's one chain per piece against chains split at the model's own CCT
     CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {
         "paper-two-outputs": frozenset({ABLATION}), "two-outputs": frozenset({ABLATION}),
+        "fault-split": frozenset({ABLATION}),
         "marching": frozenset({IDENTIFIES_NETWORKS}), "marching-large": frozenset({LARGE_SYSTEMS})}
 
     def _check_options(self) -> None:
@@ -144,7 +148,8 @@ class PinnSolver(AbstractSolver):
         fault = self.case.fault is not None
         if self.pinn_config.phases != fault:
             raise ValueError(f"{self.name}: option phases must be {fault} for case {self.case.name!r} ("
-                             + ("a fault case: use config fault-marching)" if fault else "a step case)"))
+                             + ("a fault case: use config fault-marching or fault-split)" if fault
+                                else "a step case)"))
 
     # ---- backend hooks ---------------------------------------------------------------------
 
@@ -249,33 +254,68 @@ class PinnSolver(AbstractSolver):
                          message=chain.summary(f"windows of {config.window:g} s") + (f"; {note}" if note else ""))
 
     def _fit_phases(self, arch: Architecture, deadline: float, note: str) -> FitReport:
-        """Train a fault case's switched model (`PinnConfig.phases`, `marching.train_phases`)."""
+        """Train a fault case's switched model (`PinnConfig.phases`, `marching.train_phases`; split
+        at its own CCT with `split`, `split.train_split`: `split_s` is then the estimate, s, NaN
+        without one)."""
         config = self.pinn_config
         edges = phase_edges(self.case, config.window, config.pieces)
         evaluator = self._query_evaluator(arch, edges)  # compiled within the time budget
-        on, post = train_phases(config, self.case, arch, edges,
-                                lambda physics, first: self._window_trainer(arch, physics, first),
-                                self._walker(arch, evaluator), deadline)
+        walker = self._walker(arch, evaluator)
+
+        def trainer_of(physics: Physics, first: int, scale: float, iterations: int) -> TrainWindow:
+            return self._window_trainer(arch, physics, first, scale, iterations)
+
+        screen = ""
+        if config.split:
+            post_physics = Physics.of_phase(self.case, "post")
+
+            def fit_window(problem: Problem, theta0: np.ndarray, iterations: int, until: float,
+                           what: str) -> OptimResult:
+                return self._train(arch, problem, theta0, iterations, until, what,
+                                   self._compile(arch, problem, post_physics, config.dtype))
+
+            on, post, edges, found = train_split(config, self.case, arch, edges, trainer_of, fit_window, walker,
+                                                 deadline)
+            screen = f"{found.summary()}; "
+            evaluator = self._query_evaluator(arch, edges)
+        else:
+            on, post = train_phases(config, self.case, arch, edges, trainer_of, walker, deadline)
         self.windows = edges
         self._set_model(arch, np.stack(on.thetas + post.thetas), evaluator)
-        message = (f"{on.summary(f'fault-on windows of {config.window:g} s')}; "
+        message = (f"{screen}{on.summary(f'fault-on windows of {config.window:g} s')}; "
                    f"{post.summary(f'post-fault windows of {config.window:g} s')}")
         return FitReport(seconds=0.0, iterations=sum(on.iterations) + sum(post.iterations),
                          loss=float(np.sum(on.losses) + np.sum(post.losses)),
                          message=message + (f"; {note}" if note else ""))
 
-    def _window_trainer(self, arch: Architecture, physics: Physics, first: int = 0) -> TrainWindow:
+    @property
+    def split_s(self) -> float:
+        """The clearing time (s) at which a model split at its own CCT (`PinnConfig.split`) passes
+        from its stable side's chains to its unstable side's (a t_c at it is the unstable side's);
+        NaN for any other model, and for a split model whose screen found no CCT (its pieces of
+        clearing times equal; a split exactly at the range's midpoint reads the same)."""
+        windows = getattr(self, "windows", None)
+        if not (self.pinn_config.split and isinstance(windows, PhaseEdges)):
+            return math.nan
+        widths = np.diff(windows.pieces)
+        return math.nan if np.allclose(widths, widths[0], rtol=1e-12) else float(windows.pieces[self.pinn_config.pieces])
+
+    def _window_trainer(self, arch: Architecture, physics: Physics, first: int = 0, scale: float = 1.0,
+                        iterations: int | None = None) -> TrainWindow:
         """`marching.train_chain`'s training function: window w (the model's window first + w,
-        which seeds its initial weights) under `physics`, `max_iterations`. The windows' problems
-        differ in their arrays only: the backends compile once (`Problem.signature`)."""
+        which seeds its initial weights; their output layer times `scale`) under `physics`,
+        `iterations` (default `max_iterations`). The windows' problems differ in their arrays
+        only: the backends compile once (`Problem.signature`)."""
         config = self.pinn_config
         trained: list[np.ndarray] = []  # the chain's windows so far, in order
 
         def train(problem: Problem, w: int, deadline: float, what: str) -> OptimResult:
             trainer = self._compile(arch, problem, physics, config.dtype)
             warm = config.warm_start and trained
-            theta0 = trained[-1] if warm else init_theta(arch, config.seed, window=first + w)
-            result = self._train(arch, problem, theta0, config.max_iterations, deadline, what, trainer)
+            theta0 = trained[-1] if warm else output_scaled(arch, init_theta(arch, config.seed, window=first + w),
+                                                            scale)
+            result = self._train(arch, problem, theta0, iterations or config.max_iterations, deadline, what,
+                                 trainer)
             trained.append(result.theta)
             return result
 

@@ -26,7 +26,8 @@ from solvers.pinn.optim import OptimResult
 from solvers.pinn.problems import PhaseEdges, Problem, phase_problem
 from systems.cases import Case
 
-__all__ = ["ON_WEIGHT", "Chain", "TrainWindow", "train_chain", "train_phases"]
+__all__ = ["ON_WEIGHT", "Chain", "TrainWindow", "TrainerOf", "train_chain", "train_fault_on", "train_phases",
+           "train_posts"]
 
 # train(problem, w, deadline, label) -> the optimiser's result for window w of the chain
 TrainWindow = Callable[[Problem, int, float, str], OptimResult]
@@ -61,13 +62,13 @@ class Chain:
 
 def train_chain(train: TrainWindow, problem_of: Callable[[int], Problem], lengths: np.ndarray,
                 start_of: Callable[[np.ndarray], np.ndarray], walker: Evaluator, deadline: float,
-                windows_after: float = 0, label: str = "window") -> Chain:
+                windows_after: float = 0, label: str = "window", weight: float = 1.0) -> Chain:
     """Train the windows of lengths `lengths` (s) in turn. Window w's problem is `problem_of(w)`
     with each point's start state (`Problem.start_u`, `start_f`) the state the trained windows
     0..w-1 reach from `start_of(P1)` ((len(P1), 2, n) float64, window 0's start at each point's
-    scenario input), walked by `walker` (constants of its training). Each window gets an equal
-    share of the time left to `deadline` (`time.perf_counter()` s) among it, the chain's later
-    windows and `windows_after` windows' worth of training after the chain."""
+    scenario input), walked by `walker` (constants of its training). Each window gets a share of
+    the time left to `deadline` (`time.perf_counter()` s) among it, the chain's later windows and
+    `windows_after` windows' worth of training after the chain: `weight` windows' worth each."""
     prepared: list = []
     thetas, iterations, losses, messages = [], [], [], []
     count = lengths.size
@@ -80,7 +81,7 @@ def train_chain(train: TrainWindow, problem_of: Callable[[int], Problem], length
         problem = dataclasses.replace(problem, start_u=starts(problem.p_u) if problem.t_u.size else None,
                                       start_f=starts(problem.p_f))
         now = time.perf_counter()
-        window_deadline = now + (deadline - now) / (count - w + windows_after)
+        window_deadline = now + (deadline - now) * weight / (weight * (count - w) + windows_after)
         result = train(problem, w, window_deadline, f"{label} {w + 1}/{count}")
         thetas.append(result.theta)
         prepared.append(walker.prepare(result.theta))
@@ -90,29 +91,57 @@ def train_chain(train: TrainWindow, problem_of: Callable[[int], Problem], length
     return Chain(thetas, iterations, losses, messages)
 
 
-def train_phases(config: PinnConfig, case: Case, arch: Architecture, edges: PhaseEdges,
-                 trainer_of: Callable[[Physics, int], TrainWindow], walker: Evaluator, deadline: float
-                 ) -> tuple[Chain, Chain]:
-    """Train fault case `case`'s switched model (`PinnConfig.phases`) on `edges`: the fault-on
-    chain at the constant scenario input `arch.p_mid` with the fault-on network's residual
-    (`Physics.of_phase`), then, for each piece of clearing times, the post-fault chain over
-    (tau = t - t_c, t_c in the piece) with the post-fault network's, its first window starting from
-    the trained fault-on chain's state at each point's t_c (`SwitchedEvaluator.clearing_state`).
-    `trainer_of(physics, first)` is the training function of the windows from the model's window
-    `first` on. Returns the fault-on chain and the post-fault chains joined, in parameter order."""
-    w_on, w_post, pieces = edges.on.size - 1, edges.post.size - 1, edges.pieces.size - 1
+# trainer_of(physics, first, scale, iterations) -> the training function of a chain's windows from
+# the model's window `first` on, under `physics`, their output layers starting `scale` times
+# Glorot's, at most `iterations` optimiser iterations a window
+TrainerOf = Callable[[Physics, int, float, int], TrainWindow]
+
+
+def train_fault_on(config: PinnConfig, case: Case, arch: Architecture, edges: PhaseEdges, trainer_of: TrainerOf,
+                   walker: Evaluator, deadline: float, windows_after: float, iterations: int | None = None
+                   ) -> Chain:
+    """The fault-on chain of `edges` at the constant scenario input `arch.p_mid` with the fault-on
+    network's residual (`Physics.of_phase`), from the case's initial state, `iterations` (default
+    `config.max_iterations`) a window; `windows_after` windows' worth of training after it share
+    `deadline`."""
     start0 = np.array([arch.delta0, arch.omega0], np.float64)
-    on = train_chain(trainer_of(Physics.of_phase(case, "on"), 0),
-                     lambda w: phase_problem(config, case, edges, "on", w, arch.p_mid),
-                     np.diff(edges.on), lambda P1: start0, walker, deadline,
-                     windows_after=pieces * w_post / ON_WEIGHT, label="fit fault-on window")
+    iterations = config.max_iterations if iterations is None else iterations
+    return train_chain(trainer_of(Physics.of_phase(case, "on"), 0, 1.0, iterations),
+                       lambda w: phase_problem(config, case, edges, "on", w, arch.p_mid),
+                       np.diff(edges.on), lambda P1: start0, walker, deadline,
+                       windows_after=windows_after, label="fit fault-on window")
+
+
+def train_posts(config: PinnConfig, case: Case, arch: Architecture, edges: PhaseEdges, on: Chain,
+                trainer_of: TrainerOf, walker: Evaluator, deadline: float,
+                scales: list[float] | None = None, weights: list[float] | None = None) -> Chain:
+    """For each piece k of `edges.pieces`, the post-fault chain over (tau = t - t_c, t_c in the
+    piece) with the post-fault network's residual, its first window starting from the trained
+    fault-on chain `on`'s state at each point's t_c (`SwitchedEvaluator.clearing_state`), its
+    output layers starting `scales[k]` (default 1) times Glorot's, `weights[k]` (default 1) times
+    `max_iterations` and the time share of other windows a window; the chains joined, in
+    parameter order."""
+    w_on, w_post, pieces = edges.on.size - 1, edges.post.size - 1, edges.pieces.size - 1
     probe = SwitchedEvaluator(walker, arch, edges.on, edges.post, edges.pieces)
     probe.on.load(np.stack(on.thetas))
     physics = Physics.of_phase(case, "post")
-    posts = [train_chain(trainer_of(physics, w_on + k * w_post),
+    scales = [1.0] * pieces if scales is None else scales
+    weights = [1.0] * pieces if weights is None else weights
+    posts = [train_chain(trainer_of(physics, w_on + k * w_post, scales[k], round(weights[k] * config.max_iterations)),
                          functools.partial(phase_problem, config, case, edges, "post", p_mid=arch.p_mid, piece=k),
                          np.diff(edges.post), probe.posts[k].start_of, walker, deadline,
-                         windows_after=(pieces - 1 - k) * w_post,
-                         label=f"fit post-fault piece {k + 1}/{pieces} window")
+                         windows_after=sum(weights[k + 1:]) * w_post,
+                         label=f"fit post-fault piece {k + 1}/{pieces} window", weight=weights[k])
              for k in range(pieces)]
-    return on, Chain.join(posts)
+    return Chain.join(posts)
+
+
+def train_phases(config: PinnConfig, case: Case, arch: Architecture, edges: PhaseEdges,
+                 trainer_of: TrainerOf, walker: Evaluator, deadline: float) -> tuple[Chain, Chain]:
+    """Train fault case `case`'s switched model (`PinnConfig.phases`) on `edges`: the fault-on
+    chain (`train_fault_on`), then the post-fault chain of each piece of clearing times
+    (`train_posts`). Returns the fault-on chain and the post-fault chains joined, in parameter
+    order."""
+    pieces, w_post = edges.pieces.size - 1, edges.post.size - 1
+    on = train_fault_on(config, case, arch, edges, trainer_of, walker, deadline, pieces * w_post / ON_WEIGHT)
+    return on, train_posts(config, case, arch, edges, on, trainer_of, walker, deadline)
