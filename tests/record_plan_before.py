@@ -16,28 +16,9 @@ from pathlib import Path
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).parent)]  # this checkout first
 
-from test_plan import RUNS
-
-from harness.run.plan import plan
-from harness.settings import default_specs
-from harness.suites import SUITES
-from systems.cases import CASES
+from test_plan import planned
 
 FILE = Path(__file__).parent / "data" / "plan_before.json"
-
-
-def planned(run: str) -> list[list]:
-    settings, suites, cases, configs = RUNS[run]
-    result = plan(default_specs(None, configs, settings), [CASES[name] for name in cases],
-                  [SUITES[name] for name in suites], settings)
-    works = []
-    for unit in result.units:
-        skipped = dict(unit.skipped)
-        for work in unit.works():
-            key = unit.work_key(work)
-            works.append([key["case"], key["solver"], key["config"], key["variant"], key["seed"], work,
-                          skipped.get(work, "run")])
-    return works
 
 
 def merged(old: list[list], new: list[list], adapter: str) -> list[list]:
@@ -65,7 +46,7 @@ def main(adapter: str) -> int:
     before = json.loads(FILE.read_text())
     after = {}
     for run in before:
-        after[run] = merged(before[run], planned(run), adapter)
+        after[run] = merged(before[run], planned(run)[1], adapter)
         added = len(after[run]) - len(before[run])
         print(f"{run}: {len(before[run])} entries kept, {added} of {adapter} added")
     FILE.write_text(json.dumps(after, indent=1) + "\n")
