@@ -53,9 +53,8 @@ RULE_SHORT = (f"A side wins only where the whole 95 % interval of the ratio (riv
 
 
 RULE_SURROGATE = ("The surrogate: the second rival by the same rule, the fastest configuration of a classical "
-                  "surrogate with no network (pod-spline: numba-rk snapshots, POD, splines in P1 and t; its sweep "
-                  "of snapshot counts) at least as accurate, fitted once per case; fit seconds, PINN / surrogate, "
-                  "of its worst seed.")
+                  "surrogate with no network (a model fitted to a solver's trajectories; its precision sweep) at "
+                  "least as accurate, fitted once per case; fit seconds, PINN / surrogate, of its worst seed.")
 
 
 def over_seeds(labels: list[str]) -> str:
