@@ -182,6 +182,9 @@ class AbstractSolver(abc.ABC):
       refuses a fault case (ValueError), never integrating it as a step case;
     - `identifies`: `identify` estimates m and d (False: a surrogate fitted to the case's own
       parameters, whose `_identify` raises; runs leave identification out for it);
+    - `classical_surrogate`: a model fitted to a classical solver's trajectories, no network (it
+      `trains` and is `compiled`): the verdicts' second rival of every PINN, ranked by its
+      `precision_sweep`;
     - `counts_steps`: `step_count(p1)` reports the steps (and, where its integrator counts them,
       the right-hand side evaluations) of one trajectory, integrated as `solve` integrates it;
     - `VARIANTS`: option sets that runs measure as rows of their own beside each config (a batch
@@ -216,6 +219,7 @@ class AbstractSolver(abc.ABC):
     does_work: ClassVar[bool] = True
     handles_faults: ClassVar[bool] = False
     identifies: ClassVar[bool] = True
+    classical_surrogate: ClassVar[bool] = False
     counts_steps: ClassVar[bool] = False
     blas_threads: ClassVar[int | None] = None
     VARIANTS: ClassVar[tuple[Mapping[str, Any], ...]] = ()

@@ -12,7 +12,8 @@ import pytest
 
 from harness.report.verdicts import verdict_table
 from harness.settings import DEFAULT, QUICK
-from harness.suites._matching import Candidate, Query, Rivals, interpolated_s, margin
+from harness.suites._matching import Candidate, Rivals, interpolated_s, margin
+from harness.suites._queries import Query
 from harness.suites.verdict import _row
 from solvers.base import COARSE_RTOL, AbstractSolver
 from solvers.classical.trapezoid import COARSE_STEPS, STEPS

@@ -124,6 +124,7 @@ def test_declared_capabilities_agree_with_the_adapters_options(name):
     assert cls.takes_threads == ("threads" in options)
     assert cls.can_save == (callable(getattr(cls, "save", None)) and callable(getattr(cls, "load", None)))
     assert cls.QUERY_OPTIONS <= options
+    assert not cls.classical_surrogate or (cls.trains and cls.compiled)
     for config in cls.CONFIGS:
         assert cls.marks(config) <= CONFIG_MARKS
         # a point of the sweep: a config that sets only the options its sweep sets (built on a

@@ -75,8 +75,8 @@ class TinyRival(AbstractSolver):
     def _identify(self, obs):
         return self.case.m, self.case.d, 0, False, "tiny-rival does not identify"
 '''
-# A run in a process of its own with the plugin installed, tiny-rival the only compiled rival and
-# the quick settings small enough for a test.
+# A run in a process of its own with the plugin installed, tiny-rival the only compiled ODE rival (the
+# classical surrogates as they are) and the quick settings small enough for a test.
 RUN = """
 import sys
 from dataclasses import replace
@@ -88,7 +88,9 @@ from harness.suites import _matching
 harness.settings.QUICK = replace(harness.settings.QUICK, cache_dir=None, verdict_seeds=(0, 1),
                                  verdict_rounds=1, verdict_pairs=3, throughput_sizes=(1,),
                                  t1_values_s=(10.0,), points_batch=0)
-_matching._families = lambda case, settings: [("tiny-rival", "default", ())]
+families = _matching._families
+_matching._families = lambda case, settings, surrogates=False: (
+    families(case, settings, True) if surrogates else [("tiny-rival", "default", ())])
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -121,6 +123,7 @@ def test_a_plugin_that_trains_gets_verdict_rows_for_every_seed_against_a_matched
     for r in rows:
         assert r["status"] == "ok" and r["rival"].startswith("tiny-rival [default") and r["samples"] == 3
         assert r["rival_rel_l2_delta"] <= r["pinn_rel_l2_delta"] and r["ratio_low"] <= r["ratio"] <= r["ratio_high"]
+        assert r["surrogate_label"] in {"PINN faster", "classical faster", "tie", "no rival"}
     assert json.loads((tmp_path / "out" / "metadata.json").read_text())["version_tinyverdict"] == "0.1"
 
 

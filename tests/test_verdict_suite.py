@@ -1,7 +1,9 @@
-"""The verdict suite: every query matched from a sweep, paired samples, intervals, labels, seeds."""
+"""The verdict suite: every query matched from a sweep, paired samples, intervals, labels, seeds;
+the classical surrogate beside the ODE solver, timed in the same rounds."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,8 +14,9 @@ from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
 from harness.report.verdicts import compare_runs, verdicts
 from harness.settings import QUICK
 from harness.suites import _matching
-from harness.suites._matching import Rivals, query_errors, verdict_queries
-from harness.suites.verdict import query_paths, verdict
+from harness.suites._matching import Rivals
+from harness.suites._queries import query_errors, verdict_queries
+from harness.suites.verdict import _rivals, query_paths, verdict
 from solvers import SOLVERS, make_solver
 from systems.cases import SMIB_INFERENCE as CASE
 from tests.conftest import require
@@ -71,6 +74,32 @@ def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_poi
             assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]
 
 
+def test_the_surrogate_is_a_second_rival_timed_and_labelled_by_the_same_rule(rows):
+    surrogates = _rivals(CASE, SETTINGS, surrogates=True)
+    assert len(surrogates.sweeps) == 1 and all(2 <= len(points) <= 4 for points in surrogates.sweeps.values())
+    (points,) = surrogates.sweeps.values()
+    queries = {q.name: q for q in verdict_queries(CASE, SETTINGS)}
+    assert any(r["surrogate_label"] != NO_RIVAL for r in rows)
+    for r in rows:
+        # the PINN's training seconds beside the surrogate's (the unit's own seed's: from the model cache, off here)
+        assert r["fit_s"] > 0 if r["pinn_seed"] != 0 else math.isnan(r["fit_s"])
+        if r["surrogate_label"] == NO_RIVAL:
+            assert "no sweep point as accurate" in r["surrogate_note"] and math.isnan(r["surrogate_fit_s"])
+            continue
+        assert r["surrogate_rel_l2_delta"] <= r["pinn_rel_l2_delta"]
+        assert r["surrogate_rel_l2_omega"] <= r["pinn_rel_l2_omega"]
+        assert r["surrogate_samples"] == len(r["surrogate_pinn_samples_s"]) == len(r["surrogate_samples_s"]) == 8
+        assert r["surrogate_ratio_low"] <= r["surrogate_ratio"] <= r["surrogate_ratio_high"]
+        assert r["surrogate_label"] == verdict_label(r["surrogate_ratio_low"], r["surrogate_ratio_high"])
+        assert r["surrogate_ratio"] == pytest.approx(np.median(r["surrogate_samples_s"])
+                                                     / np.median(r["surrogate_pinn_samples_s"]))
+        at = [c.label for c in points].index(r["surrogate"])
+        assert 0 < r["surrogate_fit_s"] == points[at].fit_s < math.inf
+        if at > 0:  # the configuration before it is not as accurate on this query
+            coarser = surrogates.errors(points[at - 1], queries[r["query"]])
+            assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]
+
+
 def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
     by_seed = {r["pinn_seed"]: r["pinn_rel_l2_delta"] for r in rows if r["query"] == "grid 100x201"}
     assert by_seed[0] != by_seed[1]
@@ -88,11 +117,13 @@ def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate
     solver = pinn
     small = replace(SETTINGS, verdict_seeds=(0,), throughput_sizes=(), points_batch=0)
     gated = verdict(solver, CASE, replace(small, verdict_gate=1e-12))
-    assert gated and all(r["label"] == CLASSICAL_FASTER and r["gate"] is False for r in gated)
+    assert gated and all(r["label"] == r["surrogate_label"] == CLASSICAL_FASTER and r["gate"] is False for r in gated)
     monkeypatch.setattr(_matching.Rivals, "errors", lambda self, c, q: (np.inf, np.inf))
     _matching_cache_clear()
     none = verdict(solver, CASE, replace(small, verdict_gate=1.0))
     assert all(r["label"] == NO_RIVAL and "no sweep point as accurate" in r["rivals_note"] for r in none)
+    assert all(r["surrogate_label"] == NO_RIVAL and "pod-spline default: no sweep point as accurate" in r["surrogate_note"]
+               for r in none)
 
 
 def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights(pinn):

@@ -11,15 +11,17 @@ verdict come from several rounds taken at different moments of the run.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
-__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NO_RIVAL", "PINN_FASTER", "RUN_TO_RUN", "SAMPLE_S", "TIE", "TIE_FACTOR",
+__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NOT_APPLICABLE", "NO_RIVAL", "PINN_FASTER", "RUN_TO_RUN", "SAMPLE_S", "TIE", "TIE_FACTOR",
            "calls_per_sample", "interleaved", "ratio_interval", "verdict_label", "warm_call_s"]
 
 SAMPLE_S = 2e-3  # a sample lasts at least this long (s): fast calls are timed in blocks
@@ -34,6 +36,7 @@ TIE_FACTOR = 1.2
 RUN_TO_RUN = 0.11
 PINN_FASTER, CLASSICAL_FASTER, TIE = "PINN faster", "classical faster", "tie"
 NO_RIVAL = "no rival"  # no sweep point as accurate as the PINN, or every such point out of time
+NOT_APPLICABLE = "not applicable"  # no rival of that kind is made for the case (a surrogate of step cases on a fault)
 
 
 def calls_per_sample(call_s: float) -> int:
@@ -60,28 +63,33 @@ def warm_call_s(fn: Callable[[], Any], calls: int = 3, slow_s: float = math.inf)
     return min(times)
 
 
-def _sample(fn: Callable[[], Any], calls: int) -> float:
-    start = time.perf_counter()
-    for _ in range(calls):
-        fn()
-    return (time.perf_counter() - start) / calls
+def _sample(fn: Callable[[], Any], calls: int,
+            context: Callable[[], AbstractContextManager] = contextlib.nullcontext) -> float:
+    with context():  # entered and left outside the timed calls
+        start = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        return (time.perf_counter() - start) / calls
 
 
-def interleaved(a: Callable[[], Any], b: Callable[[], Any], pairs: int, calls_a: int = 1,
-                calls_b: int = 1) -> tuple[list[float], list[float]]:
+def interleaved(a: Callable[[], Any], b: Callable[[], Any], pairs: int, calls_a: int = 1, calls_b: int = 1,
+                context_b: Callable[[], AbstractContextManager] = contextlib.nullcontext,
+                ) -> tuple[list[float], list[float]]:
     """`pairs` samples (s per call) of each of `a` and `b`, taken alternately: a b, b a, a b, ...
     (the order swapped every pair, so neither always runs right after the other), after one
     untimed call of each (the caches warm again for these two after whatever ran before). Each
-    sample is the mean over `calls_a` (`calls_b`) calls."""
+    sample is the mean over `calls_a` (`calls_b`) calls; `b`'s are made inside `context_b()`,
+    entered untimed (an adapter's own BLAS thread count, `harness.measure.timing.blas_threads`)."""
     a()
-    b()
+    with context_b():
+        b()
     samples_a, samples_b = [], []
     for i in range(pairs):
         if i % 2 == 0:
             samples_a.append(_sample(a, calls_a))
-            samples_b.append(_sample(b, calls_b))
+            samples_b.append(_sample(b, calls_b, context_b))
         else:
-            samples_b.append(_sample(b, calls_b))
+            samples_b.append(_sample(b, calls_b, context_b))
             samples_a.append(_sample(a, calls_a))
     return samples_a, samples_b
 

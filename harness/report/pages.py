@@ -19,7 +19,7 @@ from harness.report.labels import Labels
 from harness.report.markdown import header, scaling_markdown, section_markdown, verdict_markdown, work_minutes
 from harness.report.plots import PLOTS, SCALING_PLOTS, VERDICT_PLOTS
 from harness.report.tables import build_tables
-from harness.report.verdicts import RULE, RULE_SHORT, headline_table, verdict_summary
+from harness.report.verdicts import RULE, RULE_SHORT, RULE_SURROGATE, headline_table, verdict_summary
 from solvers.atomic import atomic_write
 
 __all__ = ["GENERATED", "readme_block", "write_pages"]
@@ -43,7 +43,8 @@ def verdict_block(rows: list[dict], meta: dict, pages: str, source: str, level: 
     out = [header(meta) + work_minutes(rows)]
     head = headline_table(frames)
     if head is not None:
-        out.append(f"{level} Verdicts at matched accuracy\n\n{RULE} Every query: the case pages.\n\n"
+        rule = f"{RULE} {RULE_SURROGATE}" if "surrogate verdict" in head else RULE
+        out.append(f"{level} Verdicts at matched accuracy\n\n{rule} Every query: the case pages.\n\n"
                    f"{Labels(frames).table(head).to_markdown(index=False)}\n\n"
                    f"![verdicts]({prefix}figures/verdicts.png)\n\n")
     cct = cct_headline(frames)

@@ -15,7 +15,7 @@ from harness.report.frames import identification_data, label, ok, trained
 from harness.report.ladder import GRID_QUERY, POINT_QUERY, fastest_classical, ladder, ladder_table
 from harness.report.paper import paper_table
 from harness.report.speedups import break_even, matched_speedups
-from harness.report.verdicts import RULE, verdict_table
+from harness.report.verdicts import RULE, RULE_SURROGATE, verdict_table
 from harness.suites.accuracy import COI_DELTA
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from systems.reference import OFF_TRAINING, STABLE_CLEARING
@@ -196,7 +196,8 @@ def _smib_paper_table(frames: dict) -> pd.DataFrame | None:
 
 
 TABLES = {
-    "verdicts": (f"Verdicts at matched accuracy, every query. {RULE}", verdict_table),
+    "verdicts": (lambda table: f"Verdicts at matched accuracy, every query. {RULE}" + (
+        f" {RULE_SURROGATE}" if "surrogate verdict" in table else ""), verdict_table),
     "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
                "error, fit time and query time of one model)"), _smib_paper_table),
     "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
@@ -220,10 +221,11 @@ TABLES = {
 
 
 def build_tables(frames: dict[str, pd.DataFrame]) -> dict[str, tuple[str, pd.DataFrame]]:
-    """name -> (title, table) for every table that has content."""
+    """name -> (title, table) for every table that has content (a title given as a function of
+    the table: its text for that table)."""
     out = {}
     for name, (title, build) in TABLES.items():
         table = build(frames)
         if table is not None and not table.empty:
-            out[name] = (title, table)
+            out[name] = (title(table) if callable(title) else title, table)
     return out

@@ -5,6 +5,9 @@ A verdict over seeds: "PINN faster" when every seed's label is (each seed agains
 to its own accuracy), "classical faster" when every seed's is (a seed that missed the accuracy
 gate counts so), "no rival" when no seed had one, else "tie"; it quotes how many seeds say what
 and the worst seed for the PINN (the least ratio; a seed without a ratio, as a loss, first).
+Rows that carry the second rival, the classical surrogate (`surrogate_*`), get its verdict over
+seeds by the same rule ("not applicable" when no seed had one made for the case), its worst seed
+and both fit seconds; rows without those columns give the tables they gave.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from harness.measure.paired import (
     CLASSICAL_FASTER,
     CONFIDENCE,
     NO_RIVAL,
+    NOT_APPLICABLE,
     PINN_FASTER,
     TIE,
     TIE_FACTOR,
@@ -28,7 +32,7 @@ from harness.report.format import fmt
 from harness.report.frames import label, ok
 from harness.report.ladder import GRID_QUERY, POINT_QUERY
 
-__all__ = ["AGREE", "FLIP", "HEADLINE", "RULE_SHORT", "compare_runs", "compare_table", "headline", "headline_table",
+__all__ = ["AGREE", "FLIP", "HEADLINE", "RULE_SHORT", "RULE_SURROGATE", "compare_runs", "compare_table", "headline", "headline_table",
            "run_to_run_sigma", "verdict_summary", "verdict_table", "verdicts"]
 
 # The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
@@ -48,6 +52,39 @@ RULE_SHORT = (f"A side wins only where the whole 95 % interval of the ratio (riv
               f"compiled classical solver at least as accurate; otherwise tie.")
 
 
+RULE_SURROGATE = ("The surrogate: the second rival by the same rule, the fastest configuration of a classical "
+                  "surrogate with no network (a model fitted to a solver's trajectories; its precision sweep) at "
+                  "least as accurate, fitted once per case; fit seconds, PINN / surrogate, of its worst seed.")
+
+
+def over_seeds(labels: list[str]) -> str:
+    """A verdict over seeds: the label every seed has, else "tie"."""
+    for side in (PINN_FASTER, CLASSICAL_FASTER, NO_RIVAL, NOT_APPLICABLE):
+        if all(x == side for x in labels):
+            return side
+    return TIE
+
+
+def _by_seed(labels: list[str]) -> str:
+    return ", ".join(f"{x} on {labels.count(x)} of {len(labels)}" for x in dict.fromkeys(labels))
+
+
+def _surrogate(g: pd.DataFrame) -> dict:
+    """The surrogate's verdict of one case, PINN and query's seed rows `g` (none without its
+    columns): label over seeds, the worst seed's surrogate, ratio, interval, median and fit
+    seconds beside that seed's PINN's, and the note."""
+    if "surrogate_label" not in g or g["surrogate_label"].isna().all():
+        return {}
+    labels = g["surrogate_label"].tolist()
+    ratios = g["surrogate_ratio"] if "surrogate_ratio" in g else pd.Series(np.nan, index=g.index)
+    worst = g.loc[ratios.fillna(-math.inf).idxmin()]
+    return {"surrogate verdict": over_seeds(labels), "surrogate by seed": _by_seed(labels),
+            "surrogate": worst.get("surrogate", "") or "", "surrogate_note": worst.get("surrogate_note", "") or "",
+            "pinn_fit_s": worst.get("fit_s", np.nan),
+            **{key: worst.get(key, np.nan) for key in ("surrogate_ratio", "surrogate_ratio_low", "surrogate_ratio_high",
+                                                        "surrogate_median_s", "surrogate_fit_s")}}
+
+
 def headline(v: pd.DataFrame) -> pd.Series:
     """Which verdicts (rows of `verdicts`) are the README's: the queries of `HEADLINE` and the
     batches of points."""
@@ -64,19 +101,10 @@ def verdicts(frames: dict) -> pd.DataFrame:
     out = []
     for (case, pinn, query), g in rows.groupby(["case", "pinn", "query"], sort=False):
         labels = g["label"].tolist()
-        n = len(labels)
-        if all(x == PINN_FASTER for x in labels):
-            overall = PINN_FASTER
-        elif all(x == CLASSICAL_FASTER for x in labels):
-            overall = CLASSICAL_FASTER
-        elif all(x == NO_RIVAL for x in labels):
-            overall = NO_RIVAL
-        else:
-            overall = TIE
         ratios = g["ratio"] if "ratio" in g else pd.Series(np.nan, index=g.index)
         worst = g.loc[ratios.fillna(-math.inf).idxmin()]
-        counts = ", ".join(f"{x} on {labels.count(x)} of {n}" for x in dict.fromkeys(labels))
-        out.append({"case": case, "pinn": pinn, "query": query, "kind": worst["kind"], "verdict": overall, "seeds": n, "by seed": counts,
+        out.append({"case": case, "pinn": pinn, "query": query, "kind": worst["kind"], "verdict": over_seeds(labels),
+                    "seeds": len(labels), "by seed": _by_seed(labels),
                     "worst seed": int(worst["pinn_seed"]), "path": worst.get("pinn_path", ""), "rival": worst.get("rival", ""),
                     "pinn_rel_l2_delta": worst["pinn_rel_l2_delta"], "pinn_rel_l2_omega": worst["pinn_rel_l2_omega"],
                     "rival_rel_l2_delta": worst.get("rival_rel_l2_delta", np.nan),
@@ -86,12 +114,12 @@ def verdicts(frames: dict) -> pd.DataFrame:
                     "ratio": worst.get("ratio", np.nan), "ratio_low": worst.get("ratio_low", np.nan),
                     "ratio_high": worst.get("ratio_high", np.nan), "samples": worst.get("samples", np.nan),
                     **{key: worst.get(key, np.nan) for key in ("matched_ratio", "rival_margin", "nearest_factor")},
-                    "note": worst.get("rivals_note", "") or "", "_order": g["_order"].min()})
+                    "note": worst.get("rivals_note", "") or "", **_surrogate(g), "_order": g["_order"].min()})
     return pd.DataFrame(out).sort_values("_order").drop(columns="_order").reset_index(drop=True)
 
 
-def _ratio(row: pd.Series, suffix: str = "") -> str:
-    ratio, low, high = (row[f"{key}{suffix}"] for key in ("ratio", "ratio_low", "ratio_high"))
+def _ratio(row: pd.Series, suffix: str = "", prefix: str = "") -> str:
+    ratio, low, high = (row[f"{prefix}{key}{suffix}"] for key in ("ratio", "ratio_low", "ratio_high"))
     return "-" if pd.isna(ratio) else f"{fmt(ratio, 2)}x [{fmt(low, 2)}, {fmt(high, 2)}]"
 
 
@@ -113,17 +141,31 @@ def _errors(row: pd.Series, side: str) -> str:
     return "-" if pd.isna(delta) else f"{fmt(delta)} / {fmt(omega)}"
 
 
+def _surrogate_cells(r: pd.Series) -> dict[str, str]:
+    """The surrogate's cells of a verdict (`RULE_SURROGATE`): its verdict over seeds, the worst
+    seed's ratio [95 % CI], the surrogate (or why none) and the fit seconds, PINN / surrogate."""
+    if pd.isna(r["surrogate verdict"]):
+        return {key: "-" for key in ("surrogate verdict", "surrogate ratio [95 % CI]", "surrogate",
+                                     "fit s, PINN / surrogate")}
+    return {"surrogate verdict": f"{r['surrogate verdict']} ({r['surrogate by seed']})",
+            "surrogate ratio [95 % CI]": _ratio(r, prefix="surrogate_"),
+            "surrogate": r["surrogate"] or r["surrogate_note"],
+            "fit s, PINN / surrogate": f"{fmt(r['pinn_fit_s'])} / {fmt(r['surrogate_fit_s'])}"}
+
+
 def _table(v: pd.DataFrame, with_case: bool) -> pd.DataFrame:
     """The verdicts `v` as text; the column "matched ratio" (`_matched`) where the rows carry it
-    (rows written before it have no margin)."""
+    (rows written before it have no margin), the surrogate's (`_surrogate_cells`) where they carry it."""
     matched = bool(v["rival_margin"].notna().any())
+    surrogate = "surrogate verdict" in v and bool(v["surrogate verdict"].notna().any())
     return pd.DataFrame([{**({"case": r["case"]} if with_case else {}), "query": r["query"], "PINN": r["pinn"],
                           "PINN query path": str(r["path"] or "").replace("query=", "") or "-",
                           "verdict": f"{r['verdict']} ({r['by seed']})",
                           "ratio [95 % CI]": _ratio(r), **({"matched ratio": _matched(r)} if matched else {}), "PINN ms": _ms(r["pinn_median_s"]),
                           "rival": r["rival"] or r["note"], "rival ms": _ms(r["rival_median_s"]),
                           "rel. L2 angles / speeds, PINN": _errors(r, "pinn"), "rel. L2, rival": _errors(r, "rival"),
-                          "samples": "-" if pd.isna(r["samples"]) else int(r["samples"])}
+                          "samples": "-" if pd.isna(r["samples"]) else int(r["samples"]),
+                          **(_surrogate_cells(r) if surrogate else {})}
                          for _, r in v.iterrows()])
 
 
@@ -197,35 +239,51 @@ def run_to_run_sigma(frames_a: dict, frames_b: dict) -> tuple[float, int]:
     return math.sqrt(max(excess, 0.0) / 2), len(both)
 
 
+def _tally(g: pd.DataFrame, verdict: str, ratio: str, sides: tuple[tuple[str, str], ...]) -> list[str]:
+    """How many of the verdicts `g` (column `verdict`) each of `sides` ((label, words)) has, with
+    the range of the worst seed's ratio (column `ratio`), the count over the accuracy gate and
+    where the PINN wins; the rest as "no rival on N" and "not applicable on N"."""
+    parts = []
+    for name, side in sides:
+        won = g[g[verdict] == name]
+        if won.empty:
+            continue
+        ratios = won[ratio].dropna()
+        spread = "" if ratios.empty else f" ({fmt(ratios.min(), 2)}x" + (
+            "" if len(ratios) == 1 else f" to {fmt(ratios.max(), 2)}x") + ")"
+        gated = int(won[ratio].isna().sum()) if name == CLASSICAL_FASTER else 0
+        if gated:
+            spread += f", {gated} of them over the accuracy gate"
+        where = ""
+        if name == PINN_FASTER:
+            where = ": " + ", ".join(won["query"].head(3)) + (", ..." if len(won) > 3 else "")
+        parts.append(f"{side} {len(won)}{spread}{where}")
+    for name in (NO_RIVAL, NOT_APPLICABLE):
+        rest = int((g[verdict] == name).sum())
+        if rest:
+            parts.append(f"{name} on {rest}")
+    return parts
+
+
 def verdict_summary(frames: dict) -> str:
     """The answer in a few bullets, from the verdicts (`verdicts`): per case, how many queries each
     side wins and by how much (the range of the worst seed's ratio), the ties, where the PINN wins,
-    and the PINN's error in the angles; "" without verdicts."""
+    and the PINN's error in the angles; and, where the rows carry it, the same against the classical
+    surrogate; "" without verdicts."""
     v = verdicts(frames)
     if v.empty:
         return ""
     out = []
     for case, g in v.groupby("case", sort=False):
-        parts = []
-        for name, side in ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the solver wins"), (TIE, "a tie on")):
-            won = g[g["verdict"] == name]
-            if won.empty:
-                continue
-            ratios = won["ratio"].dropna()
-            spread = "" if ratios.empty else f" ({fmt(ratios.min(), 2)}x" + (
-                "" if len(ratios) == 1 else f" to {fmt(ratios.max(), 2)}x") + ")"
-            gated = int(won["ratio"].isna().sum()) if name == CLASSICAL_FASTER else 0
-            if gated:
-                spread += f", {gated} of them over the accuracy gate"
-            where = ""
-            if name == PINN_FASTER:
-                where = ": " + ", ".join(won["query"].head(3)) + (", ..." if len(won) > 3 else "")
-            parts.append(f"{side} {len(won)}{spread}{where}")
-        rest = int((~g["verdict"].isin([PINN_FASTER, CLASSICAL_FASTER, TIE])).sum())
-        if rest:
-            parts.append(f"no rival on {rest}")
+        parts = _tally(g, "verdict", "ratio", ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the solver wins"),
+                                               (TIE, "a tie on")))
         errors = g["pinn_rel_l2_delta"].dropna()
         accuracy = "" if errors.empty else (f"; the PINN's rel. L2 in the angles {fmt(errors.min())}"
                                             + ("" if errors.min() == errors.max() else f" to {fmt(errors.max())}"))
-        out.append(f"- **{case}**, {len(g)} queries: " + "; ".join(parts) + accuracy + ".")
+        against = ""
+        if "surrogate verdict" in g and g["surrogate verdict"].notna().any():
+            against = ". Against the classical surrogate: " + "; ".join(_tally(
+                g, "surrogate verdict", "surrogate_ratio",
+                ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the surrogate wins"), (TIE, "a tie on"))))
+        out.append(f"- **{case}**, {len(g)} queries: " + "; ".join(parts) + accuracy + against + ".")
     return "\n".join(out) + "\n"

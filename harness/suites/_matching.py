@@ -1,124 +1,31 @@
-"""What a verdict compares: its queries, the accuracy of either side on one query, and the PINN's
-rival on it, the fastest point of a compiled classical adapter's precision sweep that is at least
-as accurate as the PINN in both the angles and the speeds.
-
-Accuracy on a query (`query_errors`): relative L2 against the reference (`systems.reference`) of
-the angles relative to the system's reference (the infinite bus, else the centre of inertia) and
-of the speeds, at the points the query asks, the larger of that and the same on a grid away from
-a PINN's training points (`OFF_TRAINING_P1` of the accuracy suite's off-training grid). A query of
-many trajectories is checked on `CHECK_TRAJECTORIES` of them (evenly chosen, both ends), a batch of
-points on its first `CHECK_POINTS`, a single point at t1 on its trajectory up to t1 (the standard
-times <= t1): a single number at one time can be near zero and is no measure.
-"""
+"""What a verdict compares: the PINN's rivals on a query (`harness.suites._queries`: the
+queries and the accuracy of either side on one): the fastest point of a compiled classical
+adapter's precision sweep that is at least as accurate as the PINN in both the angles and the
+speeds, and likewise of a classical surrogate's (`Rivals(..., surrogates=True)`: a model with no
+network fitted to a solver's trajectories)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from harness.measure import metrics
 from harness.measure.paired import warm_call_s
+from harness.measure.timing import blas_threads
 from harness.settings import Settings
-from harness.suites.accuracy import off_training_grid
-from harness.suites.latency import queries
+from harness.suites._queries import Query, off_training_errors, query_errors
 from solvers import SOLVERS
 from solvers.base import SWEEP_POINT, AbstractSolver, SolveError
-from systems.cases import Case, standard_grid
-from systems.model import relative_angles
-from systems.reference import reference
+from systems.cases import Case
 
-__all__ = ["CHECK_POINTS", "CHECK_TRAJECTORIES", "NEAREST_WITHIN", "Candidate", "Match", "Query", "Rivals", "interpolated_s", "margin",
-           "off_training_errors", "query_errors", "verdict_queries"]
+__all__ = ["NEAREST_WITHIN", "Candidate", "Match", "Rivals", "interpolated_s", "margin"]
 
-CHECK_TRAJECTORIES = 100
-CHECK_POINTS = 100
 SLOW_S = 0.5  # a candidate whose first call took longer is ranked by one warm call
 NEAREST_WITHIN = 3.0  # a sweep point within this factor of every PINN's error: the sweeps' aim (issue 36)
-OFF_TRAINING_P1 = 10  # P1 values of the off-training grid the accuracy is checked on (every ~10th)
-
-
-@dataclass(frozen=True)
-class Query:
-    """One query of the verdicts: the latency suite's `kind` and `name`, its times t (s) and P1
-    (p.u.): a grid of len(P1) trajectories at len(t) times, or (kind "points batch") the pairs
-    (t[i], P1[i]), with `distinct_p1` distinct P1 values among them."""
-
-    kind: str
-    name: str
-    t: np.ndarray
-    P1: np.ndarray
-
-    @property
-    def points(self) -> bool:
-        return self.kind == "points batch"
-
-    @property
-    def distinct_p1(self) -> int:
-        return int(np.unique(self.P1).size)
-
-    def call(self, solver: AbstractSolver) -> Callable[[], Any]:
-        """The timed call: `solver.solve(t, P1)`, or `solve_points(t, P1)` for a batch of points."""
-        if self.points:
-            return lambda: solver.solve_points(self.t, self.P1)
-        return lambda: solver.solve(self.t, self.P1)
-
-    def check(self, case: Case) -> tuple[np.ndarray, np.ndarray]:
-        """(t, P1) of the points its accuracy is measured at (see the module's docstring)."""
-        if self.points:
-            return self.t[:CHECK_POINTS], self.P1[:CHECK_POINTS]
-        if self.kind == "single point":
-            t_std, _ = standard_grid(case)
-            return t_std[t_std <= self.t[0]], self.P1
-        keep = np.unique(np.linspace(0, self.P1.size - 1, min(self.P1.size, CHECK_TRAJECTORIES)).round().astype(int))
-        return self.t, self.P1[keep]
-
-
-def verdict_queries(case: Case, settings: Settings) -> list[Query]:
-    """The latency suite's queries of `case` under `settings` (`harness.suites.latency.queries`)."""
-    return [Query(kind, name, t, P1) for kind, name, t, P1 in queries(case, settings)]
-
-
-def _points_reference(case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The reference at the pairs (t[i], P1[i]): one trajectory per distinct P1. Each (len(t), n)."""
-    delta, omega = np.empty((t.size, case.n)), np.empty((t.size, case.n))
-    for p1 in np.unique(P1):
-        at = np.flatnonzero(P1 == p1)
-        d, o = reference(case, t[at], np.array([p1]))
-        delta[at], omega[at] = d[0], o[0]
-    return delta, omega
-
-
-def _errors(case: Case, delta, omega, ref_delta, ref_omega) -> tuple[float, float]:
-    return (metrics.rel_l2(relative_angles(case, delta), relative_angles(case, ref_delta)),
-            metrics.rel_l2(omega, ref_omega))
-
-
-def off_training_errors(solver: AbstractSolver, case: Case) -> tuple[float, float]:
-    """(angles, speeds): relative L2 errors of `solver` on the off-training check grid (every
-    ~10th P1 of the accuracy suite's grid away from a PINN's training points)."""
-    t_off, p_off = off_training_grid(case)
-    p_off = p_off[np.linspace(0, p_off.size - 1, OFF_TRAINING_P1).round().astype(int)]
-    off = solver.solve(t_off, p_off)
-    return _errors(case, off.delta, off.omega, *reference(case, t_off, p_off))
-
-
-def query_errors(solver: AbstractSolver, case: Case, query: Query,
-                 off: tuple[float, float] | None = None) -> tuple[float, float]:
-    """(angles, speeds): relative L2 errors of `solver` on `query`, the larger of those at the
-    query's check points (`Query.check`) and `off` (default: `off_training_errors`)."""
-    t, P1 = query.check(case)
-    if query.points:
-        got = solver.solve_points(t, P1)
-        at_query = _errors(case, got.delta, got.omega, *_points_reference(case, t, P1))
-    else:
-        got = solver.solve(t, P1)
-        at_query = _errors(case, got.delta, got.omega, *reference(case, t, P1))
-    off = off_training_errors(solver, case) if off is None else off
-    return max(at_query[0], off[0]), max(at_query[1], off[1])
 
 
 def margin(errors: Sequence[float], delta: float, omega: float) -> float:
@@ -157,13 +64,15 @@ class Match:
 @dataclass
 class Candidate:
     """One point of a compiled classical adapter's precision sweep: `family` (adapter, config and
-    variant), `overrides` (its rtol, atol or dt), built and prepared on first use."""
+    variant), `overrides` (its rtol, atol, dt or a surrogate's snapshot count), built and prepared
+    on first use; `fit_s`, the seconds of that preparation (NaN before it)."""
 
     family: tuple[str, str, tuple[tuple[str, Any], ...]]
     overrides: dict[str, Any]
     case: Case
     threads: int
     _solver: AbstractSolver | None = field(default=None, repr=False)
+    fit_s: float = math.nan
 
     @property
     def label(self) -> str:
@@ -180,8 +89,13 @@ class Candidate:
             if cls.takes_threads and "threads" not in options:
                 options["threads"] = self.threads
             self._solver = cls(self.case, config, **options)
-            self._solver.fit()
+            self.fit_s = self._solver.fit().seconds
         return self._solver
+
+    def blas(self) -> AbstractContextManager:
+        """Where its queries are timed: on its adapter's BLAS thread count (`blas_threads`)."""
+        cls = SOLVERS[self.family[0]]
+        return blas_threads(cls.blas_threads if cls is not None else None)
 
     def accuracy_key(self) -> tuple:
         """What its accuracy depends on: the family without options that only change how fast it
@@ -192,13 +106,15 @@ class Candidate:
         return name, config, kept, tuple(sorted(self.overrides.items()))
 
 
-def _families(case: Case, settings: Settings) -> list[tuple[str, str, tuple]]:
-    """Every compiled classical adapter (declared `compiled`, not `trains`) installed, in each
-    config made for `case` that is not a point of another config's sweep (`SWEEP_POINT`) nor
-    omitted by `settings.omit_marks`, plain and in each of its `VARIANTS`."""
+def _families(case: Case, settings: Settings, surrogates: bool = False) -> list[tuple[str, str, tuple]]:
+    """Every compiled classical adapter (declared `compiled`, not `trains`; with `surrogates`,
+    every `classical_surrogate`) installed, in each config made for `case` that is not a point of
+    another config's sweep (`SWEEP_POINT`) nor omitted by `settings.omit_marks`, plain and in each
+    of its `VARIANTS`."""
     out = []
     for name, cls in SOLVERS.items():
-        if cls is None or not cls.compiled or cls.trains or not cls.does_work:
+        if cls is None or not cls.compiled or not cls.does_work or not (
+                cls.classical_surrogate if surrogates else not cls.trains):
             continue
         for config in cls.CONFIGS:
             marks = cls.marks(config)
@@ -211,13 +127,30 @@ def _families(case: Case, settings: Settings) -> list[tuple[str, str, tuple]]:
 class Rivals:
     """The sweep points of every compiled classical family on `case` (`_families`; each family's
     points `precision_sweep(settings.verdict_rtols)`, listed from the coarsest), their accuracy on each
-    query (measured once per point and query), and the rival of a PINN on a query (`best`)."""
+    query (measured once per point and query), and the rival of a PINN on a query (`best`).
 
-    def __init__(self, case: Case, settings: Settings) -> None:
+    With `surrogates`, the families of the classical surrogates instead, and `absent`: why each
+    of their configs has no sweep on `case` (not made for its kind or scenario, or refused by the
+    adapter: a single P1 to interpolate over); each family is fitted once untimed before its points
+    are, so that a point's `fit_s` leaves out the process's one-off compilation (numba's cache)."""
+
+    def __init__(self, case: Case, settings: Settings, surrogates: bool = False) -> None:
         self.case, self.settings = case, settings
         self.sweeps: dict[tuple, list[Candidate]] = {}
-        for family in _families(case, settings):
-            proto = SOLVERS[family[0]](case, family[1], **dict(family[2]))
+        self.absent: list[str] = [
+            f"{name} {config}: not made for {case.kind} cases of {case.scenario.meaning} ({case.scenario.symbol})"
+            for name, cls in SOLVERS.items() if surrogates and cls is not None and cls.classical_surrogate
+            for config in cls.CONFIGS if not cls.made_for(config, case.kind, case.scenario)]
+        for family in _families(case, settings, surrogates):
+            try:
+                proto = SOLVERS[family[0]](case, family[1], **dict(family[2]))
+                if surrogates:
+                    proto.fit()
+            except ValueError as exc:
+                if not surrogates:
+                    raise
+                self.absent.append(f"{family[0]} {family[1]}: {exc}")
+                continue
             points = proto.precision_sweep(settings.verdict_rtols) or [{}]
             self.sweeps[family] = [Candidate(family, p, case, settings.threads) for p in points]
         self._errors: dict[tuple, tuple[float, float]] = {}
@@ -247,7 +180,9 @@ class Rivals:
         timed call only when the untimed first took over `SLOW_S`), measured once."""
         key = (candidate.label, query.name)
         if key not in self._seconds:
-            self._seconds[key] = warm_call_s(query.call(candidate.solver()), slow_s=SLOW_S)
+            call = query.call(candidate.solver())
+            with candidate.blas():
+                self._seconds[key] = warm_call_s(call, slow_s=SLOW_S)
         return self._seconds[key]
 
     def best(self, query: Query, delta: float, omega: float) -> tuple[Candidate | None, list[str]]:

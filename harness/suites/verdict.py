@@ -2,8 +2,8 @@
 matched rival, timed paired and interleaved, with the ratio's 95 % interval and a label.
 
 For every seed of `Settings.verdict_seeds` (the unit's adapter is the first; the others are
-trained here, or loaded from the model cache) and every query (`harness.suites._matching.verdict_queries`):
-the PINN's accuracy on that query (`harness.suites._matching.query_errors`, off its training points
+trained here, or loaded from the model cache) and every query (`harness.suites._queries.verdict_queries`):
+the PINN's accuracy on that query (`harness.suites._queries.query_errors`, off its training points
 included), its fastest query path there (`query_paths`: the framework's evaluator or the compiled
 numba one, the same weights) and its rival (`harness.suites._matching.Rivals.best`: the fastest point of a compiled classical
 adapter's precision sweep at least as accurate in the angles and the speeds). Then
@@ -13,6 +13,13 @@ of one verdict come from moments minutes apart. A seed whose errors are not fini
 in the angles exceeds `Settings.verdict_gate` counts as a loss (the label "classical faster", as MLPerf counts a run
 that missed its target), as does, with the label "no rival" and no ratio, a query where no sweep
 point is as accurate or every such point is out of time (the row's `rivals_note` says which).
+
+The second rival, by the same rule beside the first: the fastest configuration of a classical
+surrogate (`classical_surrogate`: no network; its points its `precision_sweep`), fitted once per
+case and configuration before the timing, timed against the same PINN in the same rounds
+(`surrogate_*` columns, `_side_columns`): the row says whether the PINN beats the solver and
+whether it beats the surrogate, and gives both fit seconds (`fit_s`, `surrogate_fit_s`). Where
+no surrogate is made for the case (a fault case) its label is "not applicable", with the reason.
 """
 
 from __future__ import annotations
@@ -21,12 +28,14 @@ import math
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from harness.measure.paired import (
     CLASSICAL_FASTER,
     NO_RIVAL,
+    NOT_APPLICABLE,
     RUN_TO_RUN,
     calls_per_sample,
     interleaved,
@@ -36,21 +45,24 @@ from harness.measure.paired import (
 )
 from harness.settings import Settings
 from harness.suites._base import Suite
-from harness.suites._matching import Match, Query, Rivals, off_training_errors, query_errors, verdict_queries
+from harness.suites._matching import Match, Rivals
+from harness.suites._queries import Query, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models
 from solvers.base import AbstractSolver
 from systems.cases import Case
 
 __all__ = ["query_paths", "verdict"]
 
-_RIVALS: dict[tuple[str, int], Rivals] = {}  # one per case in a process: accuracies measured once
+_RIVALS: dict[tuple[str, bool, int], Rivals] = {}  # one of each kind per case in a process: accuracies measured once
 
 
-def _rivals(case: Case, settings: Settings) -> Rivals:
-    key = (case.name, hash((settings.verdict_rtols, settings.omit_marks, settings.threads, settings.max_query_s)))
+def _rivals(case: Case, settings: Settings, surrogates: bool = False) -> Rivals:
+    key = (case.name, surrogates,
+           hash((settings.verdict_rtols, settings.omit_marks, settings.threads, settings.max_query_s)))
     if key not in _RIVALS:
-        _RIVALS.clear()
-        _RIVALS[key] = Rivals(case, settings)
+        for old in [k for k in _RIVALS if k[1] == surrogates]:
+            del _RIVALS[old]
+        _RIVALS[key] = Rivals(case, settings, surrogates)
     return _RIVALS[key]
 
 
@@ -100,9 +112,10 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     point's, or its inverse). A rival more accurate than needed would be faster at matched
     accuracy, so the conservative ratio overstates the PINN's lead; where the rival is its
     family's coarsest point, `matched_ratio` is NaN and `rivals_note` says the ratio is only an
-    upper bound on that lead."""
+    upper bound on that lead. The same columns of the second rival, the classical surrogate, are
+    prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`)."""
     seeds = seed_models(solver, settings)
-    rivals = _rivals(case, settings)
+    rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
     plans: list[dict] = []
     paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
     off = {seed: off_training_errors(pinn, case) for seed, (pinn, _, _) in seeds.items()}
@@ -116,48 +129,85 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
                     else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
                     "fit_s": fit_s, "fit_iterations": iterations}
             gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
-            rival, notes = rivals.best(query, delta, omega) if gate else (None, [])
-            match = rivals.match(rival, query, delta, omega) if rival is not None else None
-            plans.append({"base": base, "query": query, "pinn": pinn, "rival": rival, "notes": notes, "gate": gate,
-                          "match": match, "samples": ([], [])})
+            plans.append({"base": base, "query": query, "pinn": pinn, "gate": gate,
+                          **_side(rivals, query, delta, omega, gate),
+                          "surrogate": _side(surrogates, query, delta, omega, gate)})
         print(f"[swingbench] verdict {case.name} {query.name}: rivals chosen", file=sys.stderr)
     for plan in plans:
-        if plan["rival"] is not None:
-            pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(plan["rival"].solver())
-            plan["calls"] = (calls_per_sample(warm_call_s(pinn_call)), calls_per_sample(warm_call_s(rival_call)))
+        for side in (plan, plan["surrogate"]):
+            if side["rival"] is not None:
+                pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(side["rival"].solver())
+                with side["rival"].blas():
+                    rival_s = warm_call_s(rival_call)
+                side["calls"] = (calls_per_sample(warm_call_s(pinn_call)), calls_per_sample(rival_s))
     for _ in range(settings.verdict_rounds):
         for plan in plans:
-            if plan["rival"] is None:
-                continue
-            query: Query = plan["query"]
-            a, b = interleaved(query.call(plan["pinn"]), query.call(plan["rival"].solver()), settings.verdict_pairs,
-                               *plan["calls"])
-            plan["samples"][0].extend(a)
-            plan["samples"][1].extend(b)
-    return [_row(plan, settings, rivals) for plan in plans]
+            for side in (plan, plan["surrogate"]):
+                if side["rival"] is None:
+                    continue
+                query: Query = plan["query"]
+                a, b = interleaved(query.call(plan["pinn"]), query.call(side["rival"].solver()),
+                                   settings.verdict_pairs, *side["calls"], context_b=side["rival"].blas)
+                side["samples"][0].extend(a)
+                side["samples"][1].extend(b)
+    return [_row(plan, settings, rivals, surrogates) for plan in plans]
 
 
-def _row(plan: dict, settings: Settings, rivals: Rivals) -> dict:
-    row = {**plan["base"], "rivals_note": "; ".join(plan["notes"]), "rounds": settings.verdict_rounds}
-    if not plan["gate"]:
-        return {**row, "label": CLASSICAL_FASTER, "rival": "", "gate": False,
+def _side(rivals: Rivals, query: Query, delta: float, omega: float, gate: bool) -> dict[str, Any]:
+    """A rival's part of a verdict's plan: the rival of `rivals` on `query` of a PINN with errors
+    (`delta`, `omega`) (none over the gate), the notes, its `Match` and the samples to come."""
+    rival, notes = rivals.best(query, delta, omega) if gate else (None, [])
+    match = rivals.match(rival, query, delta, omega) if rival is not None else None
+    return {"rival": rival, "notes": notes, "match": match, "samples": ([], [])}
+
+
+def _row(plan: dict, settings: Settings, rivals: Rivals, surrogates: Rivals | None = None) -> dict:
+    """A verdict's row: the plan's base, the ODE rival's columns and, where the plan has one
+    (`surrogates` given), the surrogate's (`_surrogate_columns`)."""
+    row = {**plan["base"], "rounds": settings.verdict_rounds, "gate": plan["gate"],
+           **_side_columns(plan, plan["gate"], settings, rivals, plan["query"])}
+    if surrogates is None or "surrogate" not in plan:
+        return row
+    return {**row, **_surrogate_columns(plan["surrogate"], plan["gate"], settings, surrogates, plan["query"])}
+
+
+def _side_columns(side: dict, gate: bool, settings: Settings, rivals: Rivals, query: Query) -> dict:
+    """One rival's columns of a verdict's row, named as the ODE rival's: its label, `rivals_note`
+    and, where it was timed, its errors, the paired samples, medians, ratio, interval and matched
+    ratio. A PINN over the gate: "classical faster"; no rival: "no rival"."""
+    notes = "; ".join(side["notes"])
+    if not gate:
+        return {"label": CLASSICAL_FASTER, "rival": "",
                 "rivals_note": f"the PINN's angle error is over the gate {settings.verdict_gate:g}: counted as a loss"}
-    rival = plan["rival"]
+    rival = side["rival"]
     if rival is None:
-        return {**row, "label": NO_RIVAL, "rival": "", "gate": True}
-    pinn_s, rival_s = plan["samples"]
+        return {"label": NO_RIVAL, "rival": "", "rivals_note": notes}
+    pinn_s, rival_s = side["samples"]
     ratio, low, high = ratio_interval(pinn_s, rival_s)
-    rival_delta, rival_omega = rivals.errors(rival, plan["query"])
-    match: Match = plan["match"]
-    if match.note:
-        row["rivals_note"] = "; ".join([*plan["notes"], match.note])
-    return {**row, "gate": True, "matched_ratio": ratio * match.time_factor, "rival_margin": match.margin,
+    rival_delta, rival_omega = rivals.errors(rival, query)
+    match: Match = side["match"]
+    return {"rivals_note": "; ".join([*side["notes"], match.note]) if match.note else notes,
+            "matched_ratio": ratio * match.time_factor, "rival_margin": match.margin,
             "nearest_factor": match.nearest_factor, "rival": rival.label, "rival_rel_l2_delta": rival_delta,
             "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
-            "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(plan["calls"]),
+            "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(side["calls"]),
             "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN,
             "label": verdict_label(low, high)}
+
+
+def _surrogate_columns(side: dict, gate: bool, settings: Settings, surrogates: Rivals, query: Query) -> dict:
+    """The surrogate's columns: `_side_columns` renamed ("rival" -> "surrogate", "rival_X" ->
+    "surrogate_X", "rivals_note" -> "surrogate_note", any other X -> "surrogate_X"; the PINN's
+    samples paired with the surrogate's are `surrogate_pinn_samples_s`) and `surrogate_fit_s`, the
+    chosen configuration's fit seconds; "not applicable" where no surrogate is made for the case."""
+    if not surrogates.sweeps:
+        return {"surrogate": "", "surrogate_label": NOT_APPLICABLE, "surrogate_fit_s": math.nan,
+                "surrogate_note": "; ".join(surrogates.absent) or "no classical surrogate made for this case"}
+    columns = _side_columns(side, gate, settings, surrogates, query)
+    renamed = {{"rival": "surrogate", "rivals_note": "surrogate_note"}.get(key, "surrogate_" + key.removeprefix("rival_")): value
+               for key, value in columns.items() if key != "run_to_run"}
+    return {**renamed, "surrogate_fit_s": side["rival"].fit_s if side["rival"] is not None else math.nan}
 
 
 SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True, own_query_path=True)

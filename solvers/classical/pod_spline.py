@@ -96,6 +96,7 @@ class PodSpline(AbstractSolver):
     trains: ClassVar[bool] = True
     identifies: ClassVar[bool] = False
     compiled: ClassVar[bool] = True
+    classical_surrogate: ClassVar[bool] = True
     # its queries' two matrix products on one BLAS thread: wscc9's grid at 17 snapshots took 0.42 ms
     # on one and 47 ms on two (OpenBLAS's threads waiting on each other, 2 loaded cores)
     blas_threads: ClassVar[int | None] = 1
