@@ -38,7 +38,8 @@ def error_interval(row: pd.Series, name: str) -> tuple[float, float]:
 def identification_plot(frames: dict, names: Labels):
     """Error of m and d per pair: one colour per solver and config, one marker per data source and
     noise level, the solvers side by side within each pair, each point's 95 % interval as a bar
-    (`error_interval`; none where the row has no interval); two legends beside the axes."""
+    (`error_interval`: up to its largest error, down to its smallest where the interval excludes the
+    truth; none where the row has no interval); two legends beside the axes."""
     df = ok(frames.get("identification"))
     if df.empty or "m_rel_error" not in df:
         return None
@@ -59,8 +60,9 @@ def identification_plot(frames: dict, names: Labels):
                 ax.scatter(x, y, marker=marker[kind], color=colour[spec], s=22, zorder=3)
                 ends = np.array([error_interval(r, name) for _, r in h.iterrows()]).reshape(-1, 2)
                 has = np.isfinite(ends).all(axis=1)
-                if has.any():
-                    low, high = np.maximum(ends[has, 0], _FLOOR), np.maximum(ends[has, 1], _FLOOR)
+                if has.any():  # an interval that holds the truth allows 0: its bar is open below, not to the floor
+                    low = np.where(ends[has, 0] > 0, ends[has, 0], y[has])
+                    high = np.maximum(ends[has, 1], _FLOOR)
                     ax.errorbar(x[has], y[has], yerr=[np.maximum(y[has] - low, 0), np.maximum(high - y[has], 0)],
                                 ls="", color=colour[spec], capsize=2, lw=0.8)
         pairs = df.drop_duplicates("pair").sort_values("pair")
@@ -69,11 +71,11 @@ def identification_plot(frames: dict, names: Labels):
                       fontsize=7)
         ax.set_yscale("log")
         ax.set_xlabel("(m, d) pair: m above, d below")
-        ax.set_ylabel("relative error (worst machine); bars: its 95 % interval")
+        ax.set_ylabel("relative error (worst machine)")
         ax.set_title(f"relative error of {name}")
         ax.grid(alpha=0.3, which="both")
     title(fig, df["case"], "identification error of m and d",
-          "bars: the range of errors the estimate's 95 % interval allows (worst machine)")
+          "bars: the errors the estimate's 95 % interval allows (none below the point: it holds the truth)")
     fig.tight_layout()
     fig.legend([Line2D([], [], ls="", marker="o", color=colour[spec]) for spec in specs], [names(s) for s in specs],
                fontsize=7, title="solver", title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.95))
