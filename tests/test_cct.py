@@ -163,14 +163,15 @@ def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(m
     assert {row["status"] for row in rows if row["case"] == "kundur4"} == {no_fault}
     (name, frames), _ = case_sections(suite_frames(rows))
     assert name == CASE
-    _, table = build_tables(frames)["cct"]
+    *_, table = build_tables(frames)["cct"]
     assert table["solver"].tolist() == [f"{ReferenceFaults.name} [default]", f"{ShiftedSurrogate.name} [default]"]
     by_method = frames["cct"].set_index("solver")
     classical_s, surrogate_s = by_method.loc[ReferenceFaults.name, "median_s"], by_method.loc[ShiftedSurrogate.name, "median_s"]
     fit_s = frames["fit"].set_index("solver").loc[ShiftedSurrogate.name, "fit_s"]
     figure = cct_plot(frames, Labels(frames))
     assert [ax.get_title() for ax in figure.axes][1:] == [
-        f"unstable side: t_c = {reference_cct(fault) + 0.02:.4g} s", f"reference CCT {reference_cct(fault):.4f} s"]
+        f"unstable side: t_c = {1e3 * (reference_cct(fault) + 0.02):.4g} ms",  # clearing times ~0.1 s: in ms
+        f"reference CCT {1e3 * reference_cct(fault):.4g} ms"]
     plt.close(figure)
     cell = table["break-even N* (CCT searches)"].iloc[1]
     if surrogate_s < classical_s:

@@ -66,9 +66,9 @@ def test_rows_without_the_surrogate_render_as_before_and_with_it_gain_its_column
     assert grid["fit s, PINN / surrogate"] == "100 / 0.03"  # that seed's PINN beside its surrogate
     assert point["surrogate verdict"] == "tie (PINN faster on 1 of 2, no rival on 1 of 2)"
     assert point["surrogate"] == "pod-spline default: no sweep point as accurate"  # the seed without a ratio
-    titles = {name: title for name, (title, _) in build_tables(_frames(True)).items()}
-    assert titles["verdicts"].endswith(RULE_SURROGATE)
-    assert RULE_SURROGATE not in build_tables(_frames(False))["verdicts"][0]
+    about = {name: text for name, (_, text, _) in build_tables(_frames(True)).items()}
+    assert about["verdicts"].endswith(RULE_SURROGATE)
+    assert RULE_SURROGATE not in build_tables(_frames(False))["verdicts"][1]
 
 
 def test_the_summary_adds_the_surrogate_only_where_the_rows_carry_it():

@@ -74,7 +74,8 @@ def _latex(name: str, labels: Labels, tables: dict) -> str:
     out of the names in a comment first."""
     note = labels.note()
     return (f"% {name}: {note}\n" if note else "") + "\n".join(
-        f"% {name}: {title}\n{labels.table(table).to_latex(index=False, escape=True)}" for title, table in tables.values())
+        f"% {name}: {title}" + (f". {about}" if about else "") + f"\n{labels.table(table).to_latex(index=False, escape=True)}"
+        for title, about, table in tables.values())
 
 
 def _results_readme(meta: dict, frames: dict, markdown: str, figures: list[str]) -> str:

@@ -13,7 +13,7 @@ from harness.report.ladder import verdict_lines
 from harness.report.scaling import break_even_by_n, exponents, scaling_frame, scaling_table, status_by_n
 from harness.store import unit_key
 
-__all__ = ["LADDER_HEADING", "header", "scaling_labels", "scaling_markdown", "section_markdown",
+__all__ = ["LADDER_ABOUT", "LADDER_HEADING", "header", "scaling_labels", "scaling_markdown", "section_markdown", "table_markdown",
            "verdict_markdown", "work_minutes"]
 
 
@@ -44,18 +44,24 @@ def work_minutes(rows: list[dict]) -> str:
     return f"Wall time of its units of work, minutes: {parts}; {sum(seconds.values()) / 60:.1f} in all{some}.\n\n"
 
 
+def table_markdown(level: str, heading: str, about: str, table: pd.DataFrame) -> str:
+    """One table under a short heading of `level`, what it holds (`about`) in a paragraph between."""
+    return f"{level} {heading}\n\n" + (f"{about}\n\n" if about else "") + f"{table.to_markdown(index=False)}\n"
+
+
 def section_markdown(name: str, frames: dict, tables: dict, level: str = "###", heading: str | None = None) -> str:
     """A case's section: its heading (`heading`, default "Case <name>"), the options its names leave
-    out, its verdicts and every table of `tables` (`build_tables`), each configuration named by
-    `harness.report.labels.Labels` of the case's rows."""
+    out, its verdicts and every table of `tables` (`build_tables`: heading, about, table), each
+    configuration named by `harness.report.labels.Labels` of the case's rows."""
     labels = Labels(frames)
     return (f"{level[:-1]} {heading or f'Case {name}'}\n\n" + verdict_markdown(frames, labels, level)
-            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
-                        for title, table in tables.values()))
+            + "\n".join(table_markdown(level, title, about, labels.table(table))
+                        for title, about, table in tables.values()))
 
 
 # The ladder's sentences time each side once, in the latency suite: not the verdict suite's verdicts.
-LADDER_HEADING = "Fastest of each side in the latency suite (single timings, not verdicts)"
+LADDER_HEADING = "Fastest of each side"
+LADDER_ABOUT = "Timed once each in the latency suite: single timings, not verdicts."
 
 
 def verdict_markdown(frames: dict, labels: Labels | None = None, level: str | None = "###") -> str:
@@ -64,7 +70,7 @@ def verdict_markdown(frames: dict, labels: Labels | None = None, level: str | No
     labels = labels or Labels(frames)
     note = labels.note()
     lines = verdict_lines(frames)
-    head = f"{level} {LADDER_HEADING}\n\n" if lines and level else ""
+    head = f"{level} {LADDER_HEADING}\n\n{LADDER_ABOUT}\n\n" if lines and level else ""
     return ((f"{note}\n\n" if note else "")
             + (head + "".join(f"- {labels.text(line, '`{}`')}\n" for line in lines) + "\n" if lines else ""))
 
@@ -79,16 +85,15 @@ def scaling_markdown(frames: dict, level: str = "###") -> str:
     """The scaling section ("" when the run has no scaling rows): cost, memory and accuracy per
     adapter and N, fitted exponents, break-even trajectories of each PINN, units that did not fit."""
     frame = scaling_frame(frames)
-    tables = [("Cost, memory and accuracy against the number of machines N", scaling_table(frame)),
-              ("Fitted exponents b of cost ~ N^b (least squares in log-log, N >= 2)", exponents(frame)),
-              ("Break-even: trajectories after which a PINN's preparation pays off", break_even_by_n(frame)),
-              ("Units that did not run to the end", status_by_n(frames))]
-    tables = [(title, table) for title, table in tables if not table.empty]
+    tables = [("Cost, memory and accuracy", "Against the number of machines N.", scaling_table(frame)),
+              ("Fitted exponents", "b of cost ~ N^b (least squares in log-log, N >= 2).", exponents(frame)),
+              ("Break-even", "The trajectories after which a PINN's preparation pays off.", break_even_by_n(frame)),
+              ("Unfinished units", "Units that did not run to the end.", status_by_n(frames))]
+    tables = [table for table in tables if not table[2].empty]
     if not tables:
         return ""
     labels = scaling_labels(frames)
     scaling = frames.get("scaling", pd.DataFrame(columns=["solver", "config"]))
     note = labels.note(set(zip(scaling["solver"], scaling["config"])))
     return (f"\n{level[:-1]} Scaling\n\n" + (f"{note}\n\n" if note else "")
-            + "\n".join(f"{level} {title}\n\n{labels.table(table).to_markdown(index=False)}\n"
-                        for title, table in tables))
+            + "\n".join(table_markdown(level, title, about, labels.table(table)) for title, about, table in tables))

@@ -1,7 +1,9 @@
 """Plots of a run (PNG and PDF): the paper's figure 3, work-precision, latency against t1,
-identification error per pair, a fault case's trajectories either side of its CCT
-(`harness.report.cct_plot`). Each function takes the suite frames and the names of their
-configurations (`harness.report.labels.Labels`) and returns a figure or None."""
+identification error per pair (`harness.report.identification_plot`), a fault case's trajectories
+either side of its CCT (`harness.report.cct_plot`). Each function takes the suite frames and the
+names of their configurations (`harness.report.labels.Labels`) and returns a figure or None. Every
+figure names the case(s) of its rows in its title and shows its durations in one unit chosen from
+them (`harness.report.plot_style`); simulated time (t, t1) is in s."""
 
 from __future__ import annotations
 
@@ -13,24 +15,28 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.lines import Line2D
 
 from harness.measure.paired import CLASSICAL_FASTER
 from harness.report.cct_plot import cct_plot
-from harness.report.frames import identification_data, label, ok, trained
+from harness.report.frames import label, ok, trained
+from harness.report.identification_plot import identification_plot
 from harness.report.labels import Labels
 from harness.report.plot_style import legend_beside as _legend_beside
 from harness.report.plot_style import palette as _palette
+from harness.report.plot_style import time_unit, title
 from harness.report.verdicts import headline, verdicts
 from systems.cases import CASES, standard_grid
+from systems.model import relative_angles
 
 __all__ = ["PLOTS", "SCALING_PLOTS", "VERDICT_PLOTS", "make_plots"]
 
 
 def figure3(frames: dict, names: Labels):
     """Best and worst trajectory (delta and omega of every machine, one line each), predicted vs
-    reference, for each PINN configuration's first seed (the paper's figure 3); none for a case
-    this process has not registered (a `--case-file` case, whose reference it cannot integrate)."""
+    reference, for each PINN configuration's first seed (the paper's figure 3); on a case without
+    an infinite bus the angles from its centre of inertia (`systems.model.relative_angles`: the
+    absolute angles drift together); none for a case this process has not registered (a
+    `--case-file` case, whose reference it cannot integrate)."""
     acc = ok(frames.get("accuracy"))
     if acc.empty or "best_pred" not in acc:
         return None
@@ -44,6 +50,11 @@ def figure3(frames: dict, names: Labels):
     fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
     case = CASES[acc["case"].iloc[0]]
     t, _ = standard_grid(case)
+
+    def shown(values, quantity: str) -> np.ndarray:  # (n_t, n): the angles against the case's reference
+        values = np.asarray(values, float).reshape(t.size, -1)
+        return relative_angles(case, values) if quantity == "delta" else values
+
     for row, quantity in enumerate(("delta", "omega")):
         for col, which in enumerate(("best", "worst")):
             ax = axes[row, col]
@@ -52,22 +63,23 @@ def figure3(frames: dict, names: Labels):
             for spec, (_, r) in zip(specs, sel.iterrows()):
                 key = (r[f"{which}_P1"],)
                 if key not in ref_drawn:
-                    ref = np.asarray(r[f"{which}_ref"], float).reshape(t.size, -1)
+                    ref = shown(r[f"{which}_ref"], quantity)
                     ax.plot(t, ref, color="black", lw=2.5, alpha=0.35,
                             label=[f"reference, {case.scenario.symbol}={r[f'{which}_P1']:.4g}"] + ["_"] * (ref.shape[1] - 1))
                     ref_drawn.add(key)
-                pred = np.asarray(r[f"{which}_pred"], float).reshape(t.size, -1)
+                pred = shown(r[f"{which}_pred"], quantity)
                 lines = ax.plot(t, pred, lw=1.2, ls="--")
                 for line in lines[1:]:
                     line.set_color(lines[0].get_color())
                 lines[0].set_label(names(label(r.to_frame().T).iloc[0]))
-            unit = "rad" if quantity == "delta" else "rad/s"
-            ax.set_title(f"{which} trajectory: {quantity}")
-            ax.set_ylabel(f"{quantity} ({unit})")
+            name = quantity if quantity != "delta" or case.has_infinite_bus else "delta - delta_COI"
+            ax.set_title(f"{which} trajectory: {name}")
+            ax.set_ylabel(f"{name} ({'rad' if quantity == 'delta' else 'rad/s'})")
             ax.grid(alpha=0.3)
             if row == 1:
                 ax.set_xlabel("t (s)")
-    fig.suptitle("Predicted (dashed) against the reference: best and worst trajectory by rel. L2")
+    title(fig, [case.name], "predicted (dashed) against the reference",
+          "best and worst trajectory by rel. L2")
     fig.tight_layout()
     fig.legend(*axes[0, 0].get_legend_handles_labels(), fontsize=7, title="best trajectory (left)",
                title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.93))
@@ -80,18 +92,20 @@ def work_precision_plot(frames: dict, names: Labels):
         return None
     wp = wp.assign(label=label(wp))
     colour = _palette(list(wp.loc[~trained(wp), "label"]) + list(wp.loc[trained(wp), "label"]))
+    unit = time_unit(wp["median_s"])
+    wp = wp.assign(shown=wp["median_s"] * unit.per_s)
     fig, ax = plt.subplots(figsize=(8, 6))
     for name, g in wp[~trained(wp)].groupby("label", sort=False):
         g = g.sort_values("rel_l2_delta")
-        ax.plot(g["rel_l2_delta"], g["median_s"], marker="o", ms=4, color=colour[name], label=names(name))
+        ax.plot(g["rel_l2_delta"], g["shown"], marker="o", ms=4, color=colour[name], label=names(name))
     for name, g in wp[trained(wp)].groupby("label", sort=False):
-        ax.scatter(g["rel_l2_delta"], g["median_s"], marker="*", s=140, zorder=3, color=colour[name],
+        ax.scatter(g["rel_l2_delta"], g["shown"], marker="*", s=140, zorder=3, color=colour[name],
                    label=f"{names(name)} (PINN)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("rel. L2 error of delta on the 100 x 201 grid")
-    ax.set_ylabel("warm query time of the grid (s)")
-    ax.set_title("Work-precision: classical tolerance sweeps (lines) and PINNs (stars)")
+    ax.set_ylabel(f"warm query time of the grid ({unit.name})")
+    title(ax, wp["case"], "work-precision", "classical tolerance sweeps (lines) and PINNs (stars)")
     ax.grid(alpha=0.3, which="both")
     _legend_beside(ax)
     fig.tight_layout()
@@ -107,16 +121,18 @@ def latency_t1_plot(frames: dict, names: Labels):
         return None
     lat = lat.assign(label=label(lat))
     colour = _palette(lat["label"])
+    unit = time_unit(lat["median_s"])
     fig, ax = plt.subplots(figsize=(8, 5))
     for name, g in lat.groupby("label", sort=False):
         g = g.sort_values("t1_s")
-        ax.errorbar(g["t1_s"], g["median_s"], yerr=[g["median_s"] - g["q25_s"], g["q75_s"] - g["median_s"]],
+        median, q25, q75 = (unit.per_s * g[column] for column in ("median_s", "q25_s", "q75_s"))
+        ax.errorbar(g["t1_s"], median, yerr=[median - q25, q75 - median],
                     marker="o", ms=4, capsize=2, color=colour[name], label=names(name),
                     ls="--" if trained(g).any() else "-")
     ax.set_yscale("log")
-    ax.set_xlabel("t1 (s)")
-    ax.set_ylabel("warm query time of delta, omega at t1 (s)")
-    ax.set_title("Single-time-point query: a classical solver integrates from 0, a PINN evaluates at t1")
+    ax.set_xlabel("t1, simulated (s)")
+    ax.set_ylabel(f"warm query time of delta, omega at t1 ({unit.name})")
+    title(ax, lat["case"], "latency at t1", "a classical solver integrates from 0, a PINN evaluates at t1")
     ax.grid(alpha=0.3, which="both")
     _legend_beside(ax)
     fig.tight_layout()
@@ -131,61 +147,28 @@ def crossover_plot(frames: dict, names: Labels):
     x = crossover(frames)
     if x is None:
         return None
+    unit = time_unit(np.concatenate([x["classical_s"], x["pinn_s"]]))
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(x["t1_s"], 1e6 * x["classical_s"], marker="o", label=f"{names(x['classical'])} (classical, compiled)")
-    ax.plot(x["t1_s"], 1e6 * x["pinn_s"], marker="*", ms=10, ls="--", label=f"{names(x['pinn'])} (PINN)")
+    ax.plot(x["t1_s"], unit.per_s * x["classical_s"], marker="o",
+            label=f"{names(x['classical'])} (classical, compiled)")
+    ax.plot(x["t1_s"], unit.per_s * x["pinn_s"], marker="*", ms=10, ls="--", label=f"{names(x['pinn'])} (PINN)")
     if x["how"] == "crossover":
         ax.axvline(x["t1_cross_s"], color="grey", lw=1)
-        ax.annotate(f"crossover t1 = {x['t1_cross_s']:.3g} s", (x["t1_cross_s"], ax.get_ylim()[1]),
+        ax.annotate(f"crossover at simulated t1 = {x['t1_cross_s']:.3g} s", (x["t1_cross_s"], ax.get_ylim()[1]),
                     xytext=(4, -14), textcoords="offset points", fontsize=8)
     ax.set_yscale("log")
-    ax.set_xlabel("t1 (s)")
-    ax.set_ylabel("warm solve() of delta, omega at t1 (us)")
-    ax.set_title(f"Single point: {x['how']}")
+    ax.set_xlabel("t1, simulated (s)")
+    ax.set_ylabel(f"warm solve() of delta, omega at t1 ({unit.name})")
+    title(ax, ok(frames.get("latency"))["case"], "single point against t1", x["how"])
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
 
 
-def identification_plot(frames: dict, names: Labels):
-    """Error of m and d per pair: one colour per solver and config, one marker per data source and
-    noise level, the solvers side by side within each pair; two legends beside the axes."""
-    df = ok(frames.get("identification"))
-    if df.empty or "m_rel_error" not in df:
-        return None
-    df = df.assign(label=label(df), data=identification_data(df))
-    specs = list(dict.fromkeys(df["label"]))
-    kinds = sorted(dict.fromkeys(zip(df["data"], df["noise"])))
-    colour = _palette(specs)
-    marker = {kind: m for kind, m in zip(kinds, "os^Dv<>")}
-    width = 0.8 / len(specs)
-    fig, axes = plt.subplots(1, 2, figsize=(14, 5.5), sharey=True)
-    for ax, column, name in ((axes[0], "m_rel_error", "m"), (axes[1], "d_rel_error", "d")):
-        for i, spec in enumerate(specs):
-            g = df[df["label"] == spec]
-            for kind, h in g.groupby(["data", "noise"]):
-                ax.scatter(h["pair"] + width * (i - (len(specs) - 1) / 2), np.maximum(h[column], 1e-12),
-                           marker=marker[kind], color=colour[spec], s=22)
-        pairs = df.drop_duplicates("pair").sort_values("pair")
-        ax.set_xticks(pairs["pair"], [f"{m:.3g}\n{d:.3g}" if np.isscalar(m) else "the case's\nown (m_k, d_k)"
-                                      for m, d in zip(pairs["m_true"], pairs["d_true"])],
-                      fontsize=7)
-        ax.set_yscale("log")
-        ax.set_xlabel("(m, d) pair: m above, d below")
-        ax.set_title(f"relative error of {name}")
-        ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.legend([Line2D([], [], ls="", marker="o", color=colour[spec]) for spec in specs], [names(s) for s in specs],
-               fontsize=7, title="solver", title_fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 0.95))
-    fig.legend([Line2D([], [], ls="", marker=marker[k], color="grey") for k in kinds],
-               [f"{data}, noise {noise:.0%}" for data, noise in kinds],
-               fontsize=7, title="data", title_fontsize=8, loc="lower left", bbox_to_anchor=(1.0, 0.1))
-    return fig
-
-
-def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax, names: Labels) -> None:
-    """`column` against N, one line per adapter spec, log-log; the fitted slope in the legend."""
+def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax, names: Labels, per: float = 1.0) -> None:
+    """`column` (times `per`: a unit) against N, one line per adapter spec, log-log; the fitted
+    slope in the legend."""
     from harness.report.scaling import log_log_slope
 
     colours = _palette(frame["label"])
@@ -196,7 +179,7 @@ def _log_log(frame: pd.DataFrame, column: str, ylabel: str, ax, names: Labels) -
         coupled = g["N"].to_numpy() >= 2  # as `exponents`: the SMIB's N = 1 has no coupling to scale
         slope, _ = log_log_slope(g["N"].to_numpy(float)[coupled], g[column].to_numpy(float)[coupled])
         tag = "" if np.isnan(slope) else f" (N^{slope:.2f})"
-        ax.plot(g["N"], g[column], "o-" if not g["trains"].iloc[0] else "s--", color=colours[name],
+        ax.plot(g["N"], per * g[column].astype(float), "o-" if not g["trains"].iloc[0] else "s--", color=colours[name],
                 label=f"{names(name)}{tag}", ms=4)
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -210,14 +193,16 @@ def scaling_cost_plot(frames: dict, names: Labels):
     frame = frames.get("scaling_frame")
     if frame is None or frame.empty:
         return None
+    unit = time_unit(frame[["prep_s", "grid_s", "point_s"]].to_numpy(float))
     fig, axes = plt.subplots(2, 2, figsize=(11, 8))
-    for ax, (column, title) in zip(axes.ravel(), (("prep_s", "preparation (s)"), ("grid_s", "grid query (s)"),
-                                                   ("point_s", "single point (s)"), ("peak_rss_mib", "peak memory (MiB)"))):
-        _log_log(frame, column, title, ax, names)
+    for ax, (column, ylabel, per) in zip(axes.ravel(), (
+            ("prep_s", f"preparation ({unit.name})", unit.per_s), ("grid_s", f"grid query ({unit.name})", unit.per_s),
+            ("point_s", f"single point ({unit.name})", unit.per_s), ("peak_rss_mib", "peak memory (MiB)", 1.0))):
+        _log_log(frame, column, ylabel, ax, names, per)
     handles, labels = axes[0, 1].get_legend_handles_labels()
     fig.legend(handles, [lab.split(" (N^")[0] for lab in labels], fontsize=7, loc="upper left",
                bbox_to_anchor=(1.0, 0.95))
-    fig.suptitle("Cost against the number of machines (fitted exponents in the scaling tables)")
+    title(fig, frame["case"], "cost against the number of machines", "fitted exponents in the scaling tables")
     fig.tight_layout()
     return fig
 
@@ -229,6 +214,7 @@ def scaling_accuracy_plot(frames: dict, names: Labels):
         return None
     fig, ax = plt.subplots(figsize=(7, 4.5))
     _log_log(frame.assign(label=frame["label"]), "rel_l2", "rel. L2 of the angles", ax, names)
+    title(ax, frame["case"], "accuracy against the number of machines")
     _legend_beside(ax)
     return fig
 
@@ -273,7 +259,7 @@ def verdict_plot(frames: dict, names: Labels):
     ax.set_xticks(range(len(cols)), [c.replace(", one call", "") for c in cols], rotation=20, ha="right", fontsize=8)
     ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}" for case, pinn in rows], fontsize=8)
     fig.colorbar(image, ax=ax, label="log10(rival time / PINN time)")
-    ax.set_title("Verdicts at matched accuracy (worst seed; hatched: tie)")
+    title(ax, v["case"], "verdicts at matched accuracy", "worst seed; hatched: tie")
     return fig
 
 

@@ -6,10 +6,13 @@ Nothing here measures anything: every cell comes from the rows of one run.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import numpy as np
 import pandas as pd
 
-from harness.report.cct import CCT_TITLE, cct_table
+from harness.report.cct import CCT_ABOUT, CCT_TITLE, cct_table
 from harness.report.format import fmt, fmt_range, latency_cell
 from harness.report.frames import identification_data, label, ok, trained
 from harness.report.ladder import GRID_QUERY, POINT_QUERY, fastest_classical, ladder, ladder_table
@@ -20,7 +23,7 @@ from harness.suites.accuracy import COI_DELTA
 from systems.cases import SMIB_IDENTIFICATION, SMIB_INFERENCE
 from systems.reference import OFF_TRAINING, STABLE_CLEARING
 
-__all__ = ["TABLES", "build_tables"]
+__all__ = ["TABLES", "Table", "build_tables"]
 
 
 def _fit_table(frames: dict) -> pd.DataFrame:
@@ -195,37 +198,52 @@ def _smib_paper_table(frames: dict) -> pd.DataFrame | None:
     return paper_table(frames) if cases and cases <= set(PAPER_CASES) else None
 
 
+class Table(NamedTuple):
+    """A table of a case's section: a heading of a few words, the paragraph under it that says what
+    the table holds (units, seeds, rules; "" for none; a function of the table where its text
+    depends on the columns the table has) and the function that builds it from the frames (None
+    or an empty frame: no such table)."""
+
+    heading: str
+    about: str | Callable[[pd.DataFrame], str]
+    build: Callable[[dict], pd.DataFrame | None]
+
+
 TABLES = {
-    "verdicts": (lambda table: f"Verdicts at matched accuracy, every query. {RULE}" + (
+    "verdicts": Table("Verdicts, every query", lambda table: f"At matched accuracy. {RULE}" + (
         f" {RULE_SURROGATE}" if "surrogate verdict" in table else ""), verdict_table),
-    "paper": (("The paper's figures beside ours (same machine, same run; PINN figures of the first seed: "
-               "error, fit time and query time of one model)"), _smib_paper_table),
-    "ladder": (("Who wins each query at matched accuracy: each PINN configuration's fastest path (first "
-                "seed; \"numba query\" is the compiled query path, `query=numba`) against the fastest classical "
-                "option at least as accurate on each rung (every PINN spec: ladder.csv)"), ladder_table),
-    "accuracy": (("Accuracy on the 100 x 201 grid, delta in rad, omega in rad/s "
-                  "(median [min, max] over seeds for PINNs)"), _accuracy_table),
-    "matched": (("Work-precision: PINN grid query against the fastest classical solver at the same "
-                 "delta accuracy (interpolated on its tolerance sweep)"), _matched_table),
-    "break_even": ("Cost of training: queries needed before a PINN pays off", _break_even_table),
-    "latency": (("Warm query latency of delta and omega, ms: median of repeats ± half the interquartile "
-                 "range (in % of the median)"), _latency_table),
-    "identification": (("Identification of every machine's m and d from N_u = 100 samples of all angles: the "
-                        "tight reference (SMIB: over the (m, d) pairs; multi-machine: the case's own values) or "
-                        "the paper's ode45 data (its own case); errors: mean and worst over pairs and machines"),
-                       _identification_table),
-    "cct": (CCT_TITLE, cct_table),
-    "fit": ("Preparation cost, apart from queries: build, JIT, training", _fit_table),
-    "status": ("Skipped or failed", _status_table),
+    "paper": Table("The paper's figures beside ours",
+                   "Same machine, same run; PINN figures of the first seed: error, fit time and query time of one "
+                   "model.", _smib_paper_table),
+    "ladder": Table("Who wins each query",
+                    "At matched accuracy: each PINN configuration's fastest path (first seed; \"numba query\" is the "
+                    "compiled query path, `query=numba`) against the fastest classical option at least as accurate on "
+                    "each rung (every PINN spec: ladder.csv).", ladder_table),
+    "accuracy": Table("Accuracy", "On the 100 x 201 grid, delta in rad, omega in rad/s (median [min, max] over seeds "
+                                  "for PINNs).", _accuracy_table),
+    "matched": Table("Work-precision",
+                     "The PINN's grid query against the fastest classical solver at the same delta accuracy "
+                     "(interpolated on its tolerance sweep).", _matched_table),
+    "break_even": Table("Cost of training", "The queries needed before a PINN pays off.", _break_even_table),
+    "latency": Table("Warm query latency",
+                     "Of delta and omega, ms: median of repeats ± half the interquartile range (in % of the "
+                     "median).", _latency_table),
+    "identification": Table("Identification",
+                            "Of every machine's m and d from N_u = 100 samples of all angles: the tight reference "
+                            "(SMIB: over the (m, d) pairs; multi-machine: the case's own values) or the paper's ode45 "
+                            "data (its own case); errors: mean and worst over pairs and machines.",
+                            _identification_table),
+    "cct": Table(CCT_TITLE, CCT_ABOUT, cct_table),
+    "fit": Table("Preparation cost", "Apart from queries: build, JIT, training.", _fit_table),
+    "status": Table("Skipped or failed", "", _status_table),
 }
 
 
-def build_tables(frames: dict[str, pd.DataFrame]) -> dict[str, tuple[str, pd.DataFrame]]:
-    """name -> (title, table) for every table that has content (a title given as a function of
-    the table: its text for that table)."""
+def build_tables(frames: dict[str, pd.DataFrame]) -> dict[str, tuple[str, str, pd.DataFrame]]:
+    """name -> (heading, about, table) for every table of `TABLES` that has content."""
     out = {}
-    for name, (title, build) in TABLES.items():
-        table = build(frames)
+    for name, spec in TABLES.items():
+        table = spec.build(frames)
         if table is not None and not table.empty:
-            out[name] = (title(table) if callable(title) else title, table)
+            out[name] = (spec.heading, spec.about(table) if callable(spec.about) else spec.about, table)
     return out
