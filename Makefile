@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 EXTRAS := torch,jax,diffrax,numba,matpower,dask,asv,crosscheck,dev
 
-.PHONY: setup test bench bench-quick lint clean
+.PHONY: setup test test-slow bench bench-quick lint clean
 
 setup: $(STAMP)
 
@@ -17,9 +17,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m solvers.numba_cache  # numba kernels into numba's on-disk cache (~30 s, once)
 	touch $@
 
-# two workers, one test file each at a time (module fixtures are built once): ~2.3 min instead of ~3.1
+# two workers, one test file each at a time (module fixtures are built once). `make test` leaves out
+# the tests marked slow (end-to-end runs through the CLI, cross-checks against ANDES, training to an
+# accuracy, JIT-heavy adapter checks); `make test-slow` runs just those, and CI runs both
 test: setup
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow"
+
+test-slow: setup
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m slow
 
 # --overwrite: results/ holds the last run's rows; they are renamed to results/rows.<UTC time>.jsonl
 # (and metadata.<UTC time>.json), which git ignores: delete them once the new run is committed

@@ -25,6 +25,7 @@ def rows(out) -> list[dict]:
 
 
 # each file's accuracy suite integrates its new case's reference (100 P1 x 201 times at 1e-12): ~20 s
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", [".json", ".m", ".mat"])
 def test_accuracy_and_latency_run_on_a_case_file(tmp_path, suffix):
     path = WRITERS[suffix](case9(), tmp_path / f"mine{suffix}")
@@ -35,6 +36,7 @@ def test_accuracy_and_latency_run_on_a_case_file(tmp_path, suffix):
     assert not [r for r in rows(out) if r["status"].startswith("failed")]
 
 
+@pytest.mark.slow
 def test_cct_runs_on_the_fault_cases_of_a_case_file(tmp_path):
     path = write_json(case9(), tmp_path / "grid.json")
     machines = write_csv(tmp_path / "machines.csv", GOOD)

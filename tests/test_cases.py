@@ -267,6 +267,7 @@ def test_metrics():
         metrics.rel_l2(ref, ref[0])
 
 
+@pytest.mark.slow
 def test_reference_agrees_with_the_papers_ode45_data_to_their_accuracy():
     for case, filename in [(SMIB_INFERENCE, "swingEquation_inference.mat"),
                            (SMIB_IDENTIFICATION, "swingEquation_identification.mat")]:

@@ -236,6 +236,7 @@ def test_a_verdict_pinn_searches_with_each_verdict_seed(monkeypatch):
     assert len(cct(_fitted(ShiftedSurrogate, case), case, SETTINGS)) == 1
 
 
+@pytest.mark.slow
 def test_accuracy_on_a_fault_case_also_covers_the_stable_clearing_times_alone():
     """On a fault case the accuracy suite adds the angles from the centre of inertia and the speeds
     over the grid's clearing times below the reference CCT: the reference itself has no error there."""

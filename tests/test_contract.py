@@ -227,8 +227,10 @@ def test_every_adapter_solves_a_fault_case_or_refuses_it(wscc9_fault, name):
         return
     if name in FAULTS_COMPILE_SLOWLY:
         pytest.skip(f"{name}'s fault solve compiles too slowly for the suite (scripts/fault_grid.py checks it)")
-    # a PINN: two pieces of clearing times and 1.5 s windows (the config's 8 and 0.5 s train 49 windows)
-    solver = make_solver(name, case, "fault-marching", **small_options(name), pieces=2, window=1.5) \
+    # a PINN: two pieces of clearing times, 1.5 s windows (the config's 8 and 0.5 s train 49 windows)
+    # and 3 iterations a window: the contract is the answer's shape and start, not its accuracy
+    solver = make_solver(name, case, "fault-marching", **{**small_options(name), "max_iterations": 3}, pieces=2,
+                         window=1.5) \
         if cls.trains else make_solver(name, case, "tight")
     fit_for_tests(solver)
     t, T_c = np.array([0.0, 0.1, 1.0, 2.5]), np.array([0.15, 0.1])

@@ -63,6 +63,7 @@ def three_obs() -> Observations:
     return Observations(THREE_T[j], THREE_P1[i], delta[i, j])
 
 
+@pytest.mark.slow
 def test_tight_matches_reference_on_the_grid(tight):
     t, P1 = standard_grid(SMIB_INFERENCE)
     traj = tight.solve(t, P1)
@@ -105,6 +106,7 @@ def test_linear_case_matches_closed_form():
     assert metrics.rel_l2(traj.omega[..., 0], omega) <= 1e-9
 
 
+@pytest.mark.slow
 def test_three_machine_lossy_matches_reference(three_tight):
     """Every coupling term (G, B, unequal E) and the mechanical powers (generator 1 gets P1, the
     others p_m): measured max errors 3e-10 rad, 1.1e-9 rad/s."""
@@ -143,6 +145,7 @@ def test_adaptive_precision_sweep_is_the_tolerance_sweep(tight):
     assert tight.precision_sweep([1e-4]) == [{"rtol": 1e-4, "atol": pytest.approx(1e-7)}]
 
 
+@pytest.mark.slow
 def test_identify_recovers_m_and_d(tight):
     """SMIB, noise-free: every time of the grid once, each at one of 16 P1. The layout is the
     (201, 16) grid `tight` compiled values for (SMIB_IDENTIFICATION has the inference case's
@@ -159,6 +162,7 @@ def test_identify_recovers_m_and_d(tight):
     assert max_rel(est.d, 0.09) < 1e-6  # measured 9e-10
 
 
+@pytest.mark.slow
 def test_identify_recovers_every_machine(three_obs):
     """All six parameters of the lossy 3-machine case from noise-free angles (measured relative
     errors 4e-10 in m, 2e-9 in d; 20 s cold, most of it compiling the sensitivities, 0.9 s warm)."""
@@ -230,6 +234,7 @@ def test_bad_options_raise_value_error_naming_the_option(option, value):
         make_solver("diffrax", SMIB_INFERENCE, **{option: value})
 
 
+@pytest.mark.slow
 def test_too_few_steps_raise_solve_error():
     """Stacked: the failing P1 is found by solving each alone (vmap names it directly)."""
     solver = _fitted(max_steps=5)
@@ -252,6 +257,7 @@ def test_fit_leaves_shapes_over_its_memory_cap_to_their_first_query(monkeypatch)
     np.testing.assert_allclose(solver.solve(t, P1).delta, ref_delta, rtol=0, atol=1e-8)
 
 
+@pytest.mark.slow
 def test_solve_points_in_one_call_equals_one_point_solves(tight):
     """Pairs of distinct P1 (a duplicate among them) equal one-point solves; pairs sharing P1, one
     trajectory per P1 to its pairs' last time, equal them to the tolerance; scrambled order and

@@ -28,6 +28,7 @@ def test_split_pieces_are_graded_towards_the_estimate_on_both_sides():
     np.testing.assert_allclose(split.split_pieces(CASE, float("nan"), 2, 2.0), np.linspace(0.05, 0.40, 5))
 
 
+@pytest.mark.slow
 def test_a_split_model_routes_each_clearing_time_to_its_side(monkeypatch):
     # the screen's estimate fixed, so that the test does not hang on what tiny budgets train
     monkeypatch.setattr(split, "screen_cct", lambda *args: split.Screen(0.17, 0.172, 1, 1, 1, 0.0))
@@ -46,6 +47,7 @@ def test_a_split_model_routes_each_clearing_time_to_its_side(monkeypatch):
     np.testing.assert_array_equal(after[:, t < 0.06], before[:, t < 0.06])  # the fault-on chain is shared
 
 
+@pytest.mark.slow
 def test_the_same_seed_gives_the_same_split_model():
     first, second = (make_solver("jax-pinn", CASE, "fault-split", **TINY) for _ in range(2))
     messages = [solver.fit().message for solver in (first, second)]

@@ -56,6 +56,7 @@ def uninterrupted(tmp_path_factory) -> list[tuple]:
 INTERRUPTIONS = ((signal.SIGKILL, 0), (signal.SIGKILL, 1), (signal.SIGINT, 2))
 
 
+@pytest.mark.slow
 def test_resume_after_kills_ends_with_the_rows_of_an_uninterrupted_run(uninterrupted, tmp_path):
     for sig, seed in INTERRUPTIONS:
         rng = random.Random(seed)

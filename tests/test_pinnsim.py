@@ -58,6 +58,7 @@ def trained():
     return solver, solver.fit()
 
 
+@pytest.mark.slow
 def test_a_network_trained_once_loads_and_answers_on_a_case_it_was_not_trained_on(trained):
     first, report = trained
     assert "component network" in report.message
@@ -79,6 +80,7 @@ def test_a_network_trained_once_loads_and_answers_on_a_case_it_was_not_trained_o
     np.testing.assert_allclose(points.delta, [traj.delta[0, 2], traj.delta[1, 1]], atol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_state_on_an_interval_edge_does_not_depend_on_the_other_query_times(trained):
     """XLA's fused arithmetic put t = 1.05 s (an edge of the 0.05 s intervals of a 0.2 s step) in
     either interval, with a time in the other, inside a batch of times (it answered the state at

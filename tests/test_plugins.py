@@ -143,6 +143,7 @@ def test_a_plugin_cannot_take_a_built_in_name(site, tmp_path):
     assert "solver 'scipy-rk45' of clashing ignored" in out.stderr
 
 
+@pytest.mark.slow
 def test_a_plugin_runs_every_default_suite_through_the_cli_and_the_report_names_it(site, tmp_path):
     run = python(["-m", "harness", "run", "--solver", "tiny", "--case", "smib-inference", "--quick",
                   "--progress", "off", "--out", "out"], [site], tmp_path)
@@ -167,6 +168,7 @@ def test_a_plugin_runs_every_default_suite_through_the_cli_and_the_report_names_
     assert "tiny" in python(["-m", "harness", "run", "--help"], [site], tmp_path).stdout
 
 
+@pytest.mark.slow
 def test_asv_benchmarks_take_a_plugin_as_a_parameter(site, tmp_path):
     probe = "import json, benchmarks._common as c; print(json.dumps(c.PARAMS[c.PARAM_NAMES.index('solver')]))"
     out = python(["-c", probe], [site], tmp_path, SWINGBENCH_ASV_QUICK="1")
@@ -185,6 +187,7 @@ def grid():
 """
 
 
+@pytest.mark.slow
 def test_a_package_brings_a_case_by_the_swingbench_cases_entry_points(tmp_path):
     import pandapower as pp
     import pandapower.networks as pn

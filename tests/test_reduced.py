@@ -89,6 +89,7 @@ def test_the_same_seed_gives_the_same_model(wscc9):
     assert not np.array_equal(other.solve(t, P1).delta, answers[0].delta)
 
 
+@pytest.mark.slow
 def test_queries_keep_the_contract_and_learn_the_case(wscc9):
     """Shapes, the initial state, points that agree with the grid, the trained domain enforced,
     and a trained model near the reference (the default config on one thread, seed 0: COI rel. L2

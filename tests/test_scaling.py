@@ -27,6 +27,7 @@ def tiny_run(tmp_path_factory):
     return out, RowStore(out).rows()
 
 
+@pytest.mark.slow
 def test_scaling_rows_on_two_sizes_each_unit_in_its_own_process(tiny_run):
     out, rows = tiny_run
     scaling = [r for r in rows if r["suite"] == "scaling"]
@@ -91,6 +92,7 @@ def test_scaling_settings_budget_pinns_by_iterations():
     assert settings.pinn_options == SCALING_PINN_OPTIONS and SCALING_PINN_OPTIONS["max_seconds"] is None
 
 
+@pytest.mark.slow
 def test_dask_gives_the_same_rows(tiny_run, tmp_path):
     pytest.importorskip("distributed")
     _, rows = tiny_run

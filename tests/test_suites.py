@@ -89,6 +89,7 @@ def test_default_and_full_runs_identify_from_the_papers_data(settings):
     assert levels == ({0.0} if settings is DEFAULT else set(FULL.noise_levels))
 
 
+@pytest.mark.slow
 def test_identification_suite_adds_the_papers_data_for_its_own_pair(tmp_path):
     from harness.suites.identification import identification
     from systems.cases import SMIB_IDENTIFICATION

@@ -275,6 +275,7 @@ def _check_outputs(out: Path, n_runs: int) -> pd.DataFrame:
     return csv
 
 
+@pytest.mark.slow
 def test_joblib_sweep(tmp_path, capsys):
     out = tmp_path / "out"
     assert _cli(str(_write(tmp_path, CHEAP)), "--out", str(out), "--workers", "2") == 0
@@ -308,6 +309,7 @@ def test_failed_run_does_not_stop_the_sweep(tmp_path):
     assert math.isnan(table["delta_rel_l2_median"].iloc[2])
 
 
+@pytest.mark.slow
 def test_dask_sweep_on_a_local_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,

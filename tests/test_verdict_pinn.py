@@ -112,6 +112,7 @@ def tiny(monkeypatch, tmp_path):
     monkeypatch.setitem(solvers.SOLVERS, "tiny-rival", module.TinyRival)
 
 
+@pytest.mark.slow
 def test_a_plugin_that_trains_gets_verdict_rows_for_every_seed_against_a_matched_rival(tmp_path):
     site = plugin_site(tmp_path / "site")
     run = python(["-c", RUN, "run", "--quick", "--suite", "verdict", "--solver", "tiny-pinn", "--case", "smib-inference",

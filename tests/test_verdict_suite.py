@@ -41,6 +41,7 @@ def rows(pinn):
     return verdict(pinn, CASE, SETTINGS)
 
 
+@pytest.mark.slow
 def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_and_a_label(rows):
     queries = [q.name for q in verdict_queries(CASE, SETTINGS)]
     assert [r["query"] for r in rows] == [q for q in queries for _ in (0, 1)]
@@ -57,6 +58,7 @@ def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_a
         assert r["ratio"] == pytest.approx(np.median(r["rival_samples_s"]) / np.median(r["pinn_samples_s"]))
 
 
+@pytest.mark.slow
 def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_point_of_its_sweep(rows):
     rivals = Rivals(CASE, SETTINGS)
     queries = {q.name: q for q in verdict_queries(CASE, SETTINGS)}
@@ -74,6 +76,7 @@ def test_the_rival_is_as_accurate_in_angles_and_speeds_and_the_coarsest_such_poi
             assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]
 
 
+@pytest.mark.slow
 def test_the_surrogate_is_a_second_rival_timed_and_labelled_by_the_same_rule(rows):
     surrogates = _rivals(CASE, SETTINGS, surrogates=True)
     assert len(surrogates.sweeps) == 1 and all(2 <= len(points) <= 4 for points in surrogates.sweeps.values())
@@ -100,6 +103,7 @@ def test_the_surrogate_is_a_second_rival_timed_and_labelled_by_the_same_rule(row
             assert coarser[0] > r["pinn_rel_l2_delta"] or coarser[1] > r["pinn_rel_l2_omega"]
 
 
+@pytest.mark.slow
 def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
     by_seed = {r["pinn_seed"]: r["pinn_rel_l2_delta"] for r in rows if r["query"] == "grid 100x201"}
     assert by_seed[0] != by_seed[1]
@@ -113,6 +117,7 @@ def test_the_seeds_are_trained_apart_and_the_table_says_how_many_agree(rows):
     assert (same["agreement"] == "agree").all()
 
 
+@pytest.mark.slow
 def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate_point_says_so(pinn, monkeypatch):
     solver = pinn
     small = replace(SETTINGS, verdict_seeds=(0,), throughput_sizes=(), points_batch=0)
@@ -126,6 +131,7 @@ def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate
                for r in none)
 
 
+@pytest.mark.slow
 def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights(pinn):
     solver = pinn
     paths = query_paths(solver)
