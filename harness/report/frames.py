@@ -53,7 +53,7 @@ def compiled(df: pd.DataFrame) -> pd.Series:
     """Rows of adapters whose queries run in compiled code (rows before the column: none)."""
     if "compiled" not in df:
         return pd.Series(False, index=df.index)
-    return df["compiled"].fillna(False).astype(bool)
+    return df["compiled"].eq(True)  # NaN (no column in that run's rows) is not True
 
 
 def does_work(df: pd.DataFrame) -> pd.Series:
@@ -62,7 +62,7 @@ def does_work(df: pd.DataFrame) -> pd.Series:
     by_name = df["solver"] != INTERFACE
     if "does_work" not in df:
         return by_name
-    return df["does_work"].fillna(by_name).astype(bool)
+    return df["does_work"].where(df["does_work"].notna(), by_name).eq(True)
 
 
 def first_seed(df: pd.DataFrame) -> pd.DataFrame:
