@@ -4,7 +4,7 @@ the settings of a run (budgets, seeds, pairs, noise levels, the `Limits` a unit 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -194,6 +194,13 @@ class Settings:
         return replace(self, unit_limits=self.scaling_unit_limits, case_pinn_options={},
                        pinn_options={**self.pinn_options, **self.scaling_pinn_options},
                        omit_marks=tuple(m for m in self.omit_marks if m != LARGE_SYSTEMS))
+
+    def given(self, options: Mapping[str, Any]) -> Settings:
+        """These settings for adapter `options` given on the command line: no case's training
+        budget (`case_pinn_options`) overrides them, also where a value equals the run-wide one
+        (`pinn_options`), which the planner could not tell from the default."""
+        return replace(self, case_pinn_options={case: {k: v for k, v in budget.items() if k not in options}
+                                                for case, budget in self.case_pinn_options.items()})
 
     @property
     def quick(self) -> bool:

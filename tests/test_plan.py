@@ -229,3 +229,26 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
     assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {
         "max_iterations=90,max_seconds=None", "max_iterations=90,max_seconds=None,query=numba"}
+
+
+def test_an_option_given_on_the_command_line_wins_over_the_case_s_budget(monkeypatch, tmp_path):
+    """`--quick --option max_iterations=150` trains wscc9's PINN 150 iterations a window, though 150
+    is also quick's run-wide value and wscc9's quick budget is 10 (the planner alone took the given
+    value for the default and put the budget in its place)."""
+    import harness.run.plan
+    from harness.cli import main
+
+    seen = {}
+
+    def stop(specs, cases, suites, settings):
+        seen["units"] = plan(specs, cases, suites, settings).units
+        raise SystemExit(0)
+
+    monkeypatch.setattr(harness.run.plan, "plan", stop)
+    assert QUICK.pinn_options["max_iterations"] == 150 and QUICK.case_pinn_options["wscc9"]["max_iterations"] == 10
+    argv = ["run", "--quick", "--suite", "accuracy", "--case", "wscc9", "--solver", "jax-pinn", "--config", "marching",
+            "--out", str(tmp_path / "out")]
+    for extra, iterations in (([], 10), (["--option", "max_iterations=150"], 150), (["--option", "max_iterations=40"], 40)):
+        with pytest.raises(SystemExit):
+            main([*argv, *extra])
+        assert {dict(u.spec.options)["max_iterations"] for u in seen["units"]} == {iterations}, extra

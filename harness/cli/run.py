@@ -177,9 +177,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         _check_verdict_pinns(specs, settings)
     if args.option:
         try:
-            specs = with_options(specs, dict(parse_option(text) for text in args.option))
+            given = dict(parse_option(text) for text in args.option)
+            specs = with_options(specs, given)
         except ValueError as exc:
             raise UsageError(f"swingbench run: --option: {exc}") from None
+        settings = settings.given(given)
     units = plan(specs, cases, [SUITES[name] for name in suites], settings).units
     try:  # every option on every case it runs on, before the first measurement
         check_units(units, settings)
