@@ -60,21 +60,6 @@ def stamp(folder: Path, probe_file: Path) -> None:
     tmp.replace(path)
 
 
-def _rows(folder: Path) -> list[dict]:
-    path = folder / "rows.jsonl"
-    if not path.is_file():
-        return []
-    rows = []
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if isinstance(row, dict) and "suite" in row:
-            rows.append(row)
-    return rows
-
-
 def _g(value: float | None, unit: str = "") -> str:
     return "n/a" if value is None or not math.isfinite(value) else f"{value:.3g}{unit}"
 
@@ -98,9 +83,10 @@ def _run_summary(folder: Path) -> str:
     then for its first variant (the adapter's own query path) the COI rel. L2 of the angles and the
     median query times: the scaling grid (4 P1 x 101 times) and single point, or the accuracy suite's
     100 x 201 grid, the latency suite's grid and single point at t1 = 10 s; and the rows not ok."""
+    from harness.store import RowStore
     from harness.suites.accuracy import COI_DELTA
 
-    rows = _rows(folder)
+    rows = RowStore(folder, create=False).read().rows if (folder / "rows.jsonl").is_file() else []
     if not rows:
         return f"{folder.name}: no rows"
     first = rows[0]

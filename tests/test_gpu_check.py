@@ -38,7 +38,7 @@ def test_the_scripts_parse(script):
 @pytest.mark.parametrize("flags, folder", [((), "results/gpu/"), (("--cpu", "--quick"), ".cache/gpu-check-cpu/")])
 def test_each_planned_run_is_one_the_harness_accepts(flags, folder):
     runs = _dry_run(*flags)
-    assert [args.solver for args in map(_parser().parse_args, runs)] == [["reduced-pinn"], ["jax-pinn"]]
+    assert [args.solver for args in map(_parser().parse_args, runs)] == [["jax-pinn"], ["reduced-pinn"]]
     for argv in runs:
         args = _parser().parse_args(argv)
         assert args.command == "run" and args.unit_seconds > 0 and args.overwrite
@@ -48,7 +48,7 @@ def test_each_planned_run_is_one_the_harness_accepts(flags, folder):
         assert specs  # every option belongs to the adapter (with_options raises otherwise)
         assert str(args.out).startswith(folder)
     gpu = "--cpu" not in flags
-    assert ("device=gpu" in runs[1]) is gpu  # jax-pinn trains on the GPU; reduced-pinn computes on JAX's default
+    assert ("device=gpu" in runs[0]) is gpu  # jax-pinn trains on the GPU; reduced-pinn computes on JAX's default
 
 
 def test_the_cpu_mode_writes_no_rows_into_the_gpu_folder():
