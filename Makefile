@@ -85,3 +85,10 @@ EXTRAS := $(EXTRAS),docs
 # asv-publish first: the site serves the asv history of .asv/html at asv/ (scripts/mkdocs_extra_files.py)
 docs: setup asv-publish
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
+# the GPU check (scripts/gpu_check.sh; docs/scaling.md): both JAX PINNs on a GPU, rows into results/gpu/.
+# No setup: the GPU machine has no .venv (the script takes the project from this checkout and carried
+# wheels, scripts/gpu_wheels.sh). CI never runs it.
+.PHONY: gpu-check
+gpu-check:
+	PYTHON=$(PYTHON) bash scripts/gpu_check.sh
