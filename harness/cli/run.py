@@ -202,6 +202,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
             counts = execute(units, settings, store, executor, progress=progress_setting(args),
                              done=contents.completed if contents else None)  # resume prepared
+    except executors.ExecutorUnavailable as exc:
+        raise UsageError(f"swingbench: {exc}") from None
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130

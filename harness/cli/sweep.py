@@ -22,7 +22,7 @@ swingbench installed), with --dask-local a LocalCluster of --workers processes, 
 
 Exit status: 0 when every run was measured (a declared skip counts as measured), 1 when a unit of
 work failed (one line names the runs and where their rows are) or the executor lost some, 2 for a
-bad spec or option, 130 on Ctrl-C.
+bad spec or option or a Dask executor that cannot be had, 130 on Ctrl-C.
 
 Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
 finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
@@ -97,7 +97,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def cmd_sweep(args: argparse.Namespace) -> int:
     """`swingbench sweep`: 0 when every run was measured, 1 when a unit of work failed (its rows
     say why; one line names them) or the executor lost some (`--resume` runs them), 2 (a
-    `UsageError`) for a bad spec, 130 on Ctrl-C."""
+    `UsageError`) for a bad spec or a Dask executor that cannot be had, 130 on Ctrl-C."""
     from harness.usage import UsageError
 
     if args.workers < 1:
@@ -138,6 +138,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         with executors.choose(args.scheduler, args.dask_local, args.workers,
                               local=executors.joblib(args.workers)) as run:
             counts = execute(units, settings, store, run, progress=progress_setting(args), done=done)
+    except executors.ExecutorUnavailable as exc:
+        raise UsageError(f"swingbench: {exc}") from None
     except KeyboardInterrupt:
         print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)
         return 130
