@@ -1,21 +1,21 @@
 """What a run measures: solver specifications (adapter, named config, seed, option overrides) and
-the settings of a run (budgets, seeds, pairs, noise levels, the `Limits` a unit may run under)."""
+the settings of a run (budgets, seeds, pairs, noise levels, the `Limits` a unit may run under), with
+the presets QUICK, DEFAULT and FULL. Which specs a run makes from the names it is given is
+`harness.selection`'s."""
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from solvers import INTERFACE, SOLVERS, UNAVAILABLE, make_solver
+from solvers import make_solver
 from solvers.base import ABLATION, DEFAULT_CONFIG, LARGE_SYSTEMS, SWEEP_POINT, AbstractSolver
 from systems.cases import IDENTIFICATION_PAIRS, NETWORK_CASES, SMIB, SMIB_IDENTIFICATION, Case
 from systems.faults import FAULT_CASES
 
-__all__ = ["DEFAULT", "FULL", "NO_LIMITS", "PAPER_PAIR", "QUICK", "Limits", "Settings", "SolverSpec",
-           "default_specs", "parse_verdict_pinns"]
+__all__ = ["DEFAULT", "FULL", "NO_LIMITS", "PAPER_PAIR", "QUICK", "Limits", "Settings", "SolverSpec"]
 
 
 class Limits(NamedTuple):
@@ -109,7 +109,7 @@ class Settings:
     took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
     (iterations per window, `harness.run.plan`). The verdict suite (`harness.suites.verdict`) measures
     the PINNs of `verdict_pinns` ((adapter, configs, options its spec has): by default the JAX PINN,
-    `swingbench run --verdict-pinn` sets any trained adapters, `parse_verdict_pinns`; the
+    `swingbench run --verdict-pinn` sets any trained adapters, `harness.selection.parse_verdict_pinns`; the
     suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
     the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
     than it needs to be; from 3e-2, coarser than ode45's 1e-3, so that a sweep point lies within
@@ -259,91 +259,3 @@ DEFAULT = Settings(
 FULL = Settings(name="full", seeds=(0, 1, 2, 3, 4), max_call_s=60.0, max_query_s=600.0,
                 network_noise_levels=(0.0, 0.01),
                 case_pinn_options={case: {"max_iterations": 300, "max_seconds": None} for case in NETWORK_CASES})
-
-
-def default_specs(
-    solvers: Iterable[str] | None = None, configs: Iterable[str] | None = None,
-    settings: Settings = DEFAULT,
-) -> list[SolverSpec]:
-    """Every registered adapter (installed or not: missing ones become 'skipped' rows) in each of
-    its named configs (`configs`, or those without a mark in `settings.omit_marks`), plain and in
-    each of its `VARIANTS`; adapters that train once per seed of `settings.seeds`; and, when no
-    adapters are named, the do-nothing adapter that times the interface (latency only)."""
-    names = list(SOLVERS) if solvers is None else list(solvers)
-    unknown = [n for n in names if n not in SOLVERS]
-    if unknown:
-        raise ValueError(f"unknown solver(s) {', '.join(unknown)}; known: {', '.join(SOLVERS)}")
-    specs = []
-    for name in names:
-        cls = SOLVERS[name]
-        if cls is None:
-            specs.append(SolverSpec(name))
-            continue
-        for config in cls.CONFIGS:
-            if config not in configs if configs is not None else cls.marks(config) & set(settings.omit_marks):
-                continue
-            variants = [(), *(tuple(sorted(v.items())) for v in cls.VARIANTS)]
-            if cls.trains:
-                budget = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
-                for variant in variants:  # the plain spec first: it trains, its variants reuse the model
-                    specs.extend(SolverSpec(name, config, tuple(sorted(budget + variant)), seed)
-                                 for seed in settings.seeds)
-                continue
-            specs.extend(SolverSpec(name, config, variant) for variant in variants)
-    if solvers is None:
-        specs.append(SolverSpec(INTERFACE))
-    return specs
-
-
-def parse_option(text: str) -> tuple[str, Any]:
-    """"KEY=VALUE" -> (KEY, VALUE), VALUE read as JSON where it is JSON ("100" -> 100, "null" ->
-    None, "[0.1, 2]" -> a list) and as text otherwise ("lbfgs")."""
-    key, sep, value = text.partition("=")
-    if not sep or not key:
-        raise ValueError(f"an option override is KEY=VALUE, got {text!r}")
-    try:
-        return key, json.loads(value)
-    except json.JSONDecodeError:
-        return key, value
-
-
-def parse_verdict_pinns(texts: Iterable[str]) -> tuple[tuple[str, tuple[str, ...], tuple[()]], ...]:
-    """`Settings.verdict_pinns` from "NAME" (every named config of adapter NAME) or "NAME:CONFIG"
-    texts, one entry per adapter in the order first named, its configs in the order given.
-    ValueError, one line, for an unknown or uninstalled adapter, one that does not train
-    (`trains`) or an unknown config."""
-    configs: dict[str, list[str]] = {}
-    for text in texts:
-        name, sep, config = text.partition(":")
-        if name not in SOLVERS:
-            raise ValueError(f"{text}: unknown solver {name!r}; known: {', '.join(SOLVERS)}")
-        cls = SOLVERS[name]
-        if cls is None:
-            raise ValueError(f"{text}: {name} is not available ({UNAVAILABLE[name]})")
-        if not cls.trains:
-            raise ValueError(f"{text}: {name} does not train; the verdict suite measures adapters that do (trains)")
-        if sep and config not in cls.CONFIGS:
-            raise ValueError(f"{text}: unknown config {config!r} of {name}; known: {', '.join(cls.CONFIGS)}")
-        chosen = configs.setdefault(name, [])
-        chosen.extend(c for c in ([config] if sep else cls.CONFIGS) if c not in chosen)
-    return tuple((name, tuple(chosen), ()) for name, chosen in configs.items())
-
-
-def with_options(specs: Iterable[SolverSpec], overrides: dict[str, Any]) -> list[SolverSpec]:
-    """`specs` with `overrides` set in the options of every spec whose adapter has the option (its
-    variant then shows them). ValueError when an override is an option of none of the specs'
-    adapters. The values are checked where every option is, on every case it runs on: by building
-    each unit's adapter before measuring (`harness.run.runner.check_units`)."""
-    specs = list(specs)
-    known = {key for spec in specs if SOLVERS.get(spec.solver) for key in SOLVERS[spec.solver].OPTIONS}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise ValueError(f"option(s) {', '.join(unknown)} belong to none of the selected adapters")
-    out = []
-    for spec in specs:
-        cls = SOLVERS.get(spec.solver)
-        mine = {k: v for k, v in overrides.items() if cls is not None and k in cls.OPTIONS}
-        if mine:
-            spec = replace(spec, options=tuple(sorted({**dict(spec.options), **mine}.items())))
-        out.append(spec)
-    return out

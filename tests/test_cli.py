@@ -105,3 +105,25 @@ def test_cli_refuses_an_option_a_selected_case_or_this_machine_cannot_take_befor
     err = captured.err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(message) and "Traceback" not in captured.err
     assert not out.exists()  # refused before the first measurement
+
+
+@pytest.mark.parametrize("command", ["run", "sweep"])
+def test_an_executor_that_cannot_be_had_is_a_usage_error(command, tmp_path, capsys, monkeypatch):
+    """The runner says why Dask cannot be had (`ExecutorUnavailable`); the command says it as one
+    line on stderr and exits 2, before any unit runs."""
+    if solvers.SOLVERS.get("casadi-cvodes") is None:
+        pytest.skip("casadi-cvodes is not installed")
+    monkeypatch.setitem(sys.modules, "distributed", None)  # `from distributed import ...` raises ImportError
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"solver": "casadi-cvodes", "grid": {"rtol": [1e-6]}}))
+    out = tmp_path / "out"
+    argv = {"run": ["run", "--quick", "--progress", "off", "--case", "smib-inference", "--solver", "casadi-cvodes",
+                    "--config", "default", "--suite", "accuracy"],
+            "sweep": ["sweep", str(spec), "--progress", "off"]}[command]
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--dask-local", "--out", str(out)])
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    assert captured.err.strip().splitlines()[-1] == ("swingbench: --scheduler/--dask-local need dask.distributed: "
+                                                     "pip install 'swingbench[dask]'")
+    assert "Traceback" not in captured.err and not (out / "rows.jsonl").exists()  # nothing measured

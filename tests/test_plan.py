@@ -12,7 +12,8 @@ import pytest
 
 from harness.run.plan import FIT, Unit, left_out, not_on_case, plan
 from harness.run.runner import run_unit
-from harness.settings import DEFAULT, FULL, QUICK, SolverSpec, default_specs
+from harness.selection import default_specs
+from harness.settings import DEFAULT, FULL, QUICK, SolverSpec
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver
 from solvers.base import (
@@ -192,7 +193,6 @@ def test_make_bench_leaves_the_sweep_points_out_on_fault_cases_only_unless_named
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():
     from harness.run.plan import plan
-    from harness.settings import default_specs
     from harness.suites import DEFAULT_SUITES, SUITES
     from systems.cases import SMIB_INFERENCE as forward
 
@@ -215,7 +215,6 @@ def test_query_path_variants_skip_identification_which_does_not_depend_on_them()
 
 def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     from harness.run.plan import plan
-    from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES
     from systems.cases import SMIB_INFERENCE as forward

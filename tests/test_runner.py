@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from dataclasses import replace
 from typing import ClassVar
 
@@ -469,3 +470,14 @@ def test_failures_and_missing_dependencies_become_rows_and_the_run_goes_on(tmp_p
     assert "Wall time of its units of work, minutes: smib-inference " in markdown
     assert "skipped: nothing not installed" in markdown
     assert pd.read_csv(tmp_path / "accuracy.csv")["rel_l2"].notna().any()
+
+
+def test_the_runner_says_an_executor_cannot_be_had_without_ending_the_process(monkeypatch):
+    """`harness.run` raises its own error, not the command line's `SystemExit`: the CLI decides the
+    exit status."""
+    from harness.run import executors
+
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    entering = executors.choose(None, True, workers=1)
+    with pytest.raises(executors.ExecutorUnavailable, match=r"^--scheduler/--dask-local need dask\.distributed"):
+        entering.__enter__()

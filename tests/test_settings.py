@@ -1,5 +1,5 @@
-"""The settings of a run (`harness.settings`): which specs it makes, the sweeps and budgets of make
-bench, option overrides."""
+"""The settings of a run (`harness.settings`) and the specs it makes (`harness.selection`): the sweeps
+and budgets of make bench, option overrides."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from harness.settings import DEFAULT, QUICK, default_specs
+from harness.selection import default_specs
+from harness.settings import DEFAULT, QUICK
 from systems.cases import SMIB_INFERENCE
 
 
@@ -38,7 +39,7 @@ def test_python_driven_adapters_sweep_fewer_tolerances_on_networks_only():
 
 
 def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
-    from harness.settings import parse_option, with_options
+    from harness.selection import parse_option, with_options
 
     assert parse_option("max_iterations=100") == ("max_iterations", 100)
     assert parse_option("optimizer=lbfgs") == ("optimizer", "lbfgs")
@@ -73,7 +74,6 @@ def test_pinn_training_is_bounded_by_iterations_unless_a_time_budget_is_given():
 
 def test_make_bench_trains_every_network_pinn_for_iterations_not_seconds():
     from harness.run.plan import plan
-    from harness.settings import default_specs
     from harness.suites import SUITES
     from systems.cases import CASES, NETWORK_CASES
 

@@ -15,6 +15,7 @@ import pytest
 
 from harness.cli import sweep
 from harness.measure.timing import pinned_threads
+from harness.report.sweep import summary_markdown, summary_table
 from harness.run.plan import Unit
 from harness.run.runner import run_unit_in_worker
 from harness.settings import Settings, SolverSpec
@@ -303,7 +304,7 @@ def test_failed_run_does_not_stop_the_sweep(tmp_path):
     failed = [r for r in rows if r["status"] != "ok"]
     assert len(failed) == 2 and {r["p_rtol"] for r in failed} == {-1.0}
     assert all(r["status"].startswith("failed: ValueError") for r in failed)
-    table = sweep.summary_table(pd.DataFrame(rows))
+    table = summary_table(pd.DataFrame(rows))
     assert list(table["p_rtol"]) == [1e-3, 1e-6, -1.0]
     assert list(table["runs_ok"]) == [1, 1, 0] and list(table["failed"]) == [0, 0, 1]
     assert math.isnan(table["delta_rel_l2_median"].iloc[2])
@@ -336,7 +337,7 @@ def test_summary_statistics_over_seeds():
                      {**base, "quantity": "delta", "against": "paper ode45 data", "rel_l2": 99.0}]
     rows.append({"suite": "accuracy", "case": "c", "solver": "s", "config": "default", "variant": "width=20",
                  "seed": 3, "point": 1, "p_width": 20, "status": "failed: RuntimeError: diverged"})
-    table = sweep.summary_table(pd.DataFrame(rows))
+    table = summary_table(pd.DataFrame(rows))
     assert list(table["p_width"]) == [10, 20]
     first, second = table.iloc[0], table.iloc[1]
     assert (first["runs_ok"], first["failed"], second["runs_ok"], second["failed"]) == (3, 0, 3, 1)
@@ -344,7 +345,7 @@ def test_summary_statistics_over_seeds():
     assert (first["delta_rel_l2_min"], first["delta_rel_l2_max"]) == pytest.approx((1e-3, 3e-3))
     assert second["omega_rel_l2_median"] == pytest.approx(4e-4)
     assert first["fit_s_median"] == pytest.approx(20.0)
-    md = sweep._markdown(table, {"runs": 7})
+    md = summary_markdown(table, {"runs": 7})
     assert "0.002 [0.001, 0.003]" in md and "3 / 1" in md and "No latency" in md
 
 

@@ -15,7 +15,8 @@ import pytest
 import solvers
 from harness.cli import main
 from harness.run.plan import plan
-from harness.settings import QUICK, default_specs, parse_verdict_pinns
+from harness.selection import default_specs, parse_verdict_pinns
+from harness.settings import QUICK
 from harness.store import RowStore
 from harness.suites import SUITES
 from harness.usage import EXIT_USAGE

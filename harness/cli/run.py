@@ -120,16 +120,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.run import executors
     from harness.run.plan import plan
     from harness.run.runner import check_units, execute
-    from harness.settings import (
-        DEFAULT,
-        FULL,
-        QUICK,
-        Limits,
-        default_specs,
-        parse_option,
-        parse_verdict_pinns,
-        with_options,
-    )
+    from harness.selection import default_specs, parse_option, parse_verdict_pinns, with_options
+    from harness.settings import DEFAULT, FULL, QUICK, Limits
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
     from solvers.atomic import atomic_write
@@ -202,6 +194,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
             counts = execute(units, settings, store, executor, progress=progress_setting(args),
                              done=contents.completed if contents else None)  # resume prepared
+    except executors.ExecutorUnavailable as exc:
+        raise UsageError(f"swingbench: {exc}") from None
     except KeyboardInterrupt:
         print(interrupted_message(store, argv), file=sys.stderr)
         return 130

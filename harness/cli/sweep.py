@@ -22,12 +22,13 @@ swingbench installed), with --dask-local a LocalCluster of --workers processes, 
 
 Exit status: 0 when every run was measured (a declared skip counts as measured), 1 when a unit of
 work failed (one line names the runs and where their rows are) or the executor lost some, 2 for a
-bad spec or option, 130 on Ctrl-C.
+bad spec or option or a Dask executor that cannot be had, 130 on Ctrl-C.
 
 Output in --out: rows.jsonl (each run recorded as it finishes: an interrupted sweep keeps its
 finished runs; --resume runs only the rest), then, written atomically, sweep.csv (tidy: every row),
 sweep.md (per grid point and case: median and [min, max] over seeds of the relative L2 error of delta
-and omega against the DOP853 reference, median fit seconds, runs ok/failed) and metadata.json.
+and omega against the DOP853 reference, median fit seconds, runs ok/failed; both written by
+`harness.report.sweep`) and metadata.json.
 
 This module imports only the standard library at the top: the CLI imports it to build its parser.
 """
@@ -36,10 +37,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
-from typing import Any
 
 from harness.cli.options import (
     add_case_file_options,
@@ -49,89 +48,8 @@ from harness.cli.options import (
 )
 from harness.run.sweep_spec import SweepSpec, load_spec, parse_spec, sweep_settings
 
-__all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec", "summary_table"]
+__all__ = ["SweepSpec", "add_parser", "cmd_sweep", "load_spec", "parse_spec"]
 
-
-# ------------------------------------------------------------------------------------------ summary
-
-def summary_table(frame) -> Any:
-    """Per case and grid point: runs ok/failed, median and [min, max] over seeds of rel. L2 of delta
-    and omega against the reference, median fit seconds. A pandas DataFrame in grid order."""
-    import pandas as pd
-
-    if frame.empty:
-        return pd.DataFrame()
-    params = [c for c in frame.columns if c.startswith("p_")]
-    groups = ["case", "solver", "config", "point"]
-    accuracy = frame[frame["suite"] == "accuracy"]
-    runs = accuracy.groupby([*groups, "variant", "seed"], sort=False, dropna=False)["status"].agg(
-        lambda s: (s == "ok").all()).rename("ok").reset_index()
-    fits = frame[(frame["suite"] == "fit") & (frame["status"] == "ok")].reindex(columns=[*groups, "fit_s"])
-    table = runs.groupby(groups, sort=False).agg(runs_ok=("ok", "sum"), failed=("ok", lambda s: int((~s).sum())))
-    table = frame.groupby(groups, sort=False)[params].first().join(table, how="right")
-    table = table.join(fits.groupby(groups, sort=False)["fit_s"].median().rename("fit_s_median"), how="left")
-    good = accuracy[accuracy["status"] == "ok"].reindex(columns=[*groups, "quantity", "against", "rel_l2"])
-    good = good[good["against"] == "reference"]
-    for quantity in ("delta", "omega"):
-        stats = good[good["quantity"] == quantity].groupby(groups, sort=False)["rel_l2"].agg(
-            ["median", "min", "max"])
-        stats.columns = [f"{quantity}_rel_l2_{s}" for s in stats.columns]
-        table = table.join(stats, how="left")
-    table = table.reset_index().sort_values(["case", "point"], kind="stable")
-    return table.drop(columns=["point"]).reset_index(drop=True)
-
-
-def _markdown(table, meta: dict) -> str:
-    if table.empty:
-        return "No rows.\n"
-
-    def fmt(x: Any) -> str:
-        return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3g}"
-
-    keep = [c for c in table.columns if c in ("case", "solver", "config") or c.startswith("p_")]
-    shown = table[keep].copy()
-    shown.columns = [c.removeprefix("p_") for c in shown.columns]
-    shown["runs ok / failed"] = [f"{int(a)} / {int(b)}" for a, b in zip(table["runs_ok"], table["failed"])]
-    for quantity in ("delta", "omega"):
-        cols = [f"{quantity}_rel_l2_{s}" for s in ("median", "min", "max")]
-        shown[f"{quantity} rel. L2, median [min, max]"] = [
-            f"{fmt(m)} [{fmt(lo)}, {fmt(hi)}]" if not math.isnan(m) else ""
-            for m, lo, hi in table[cols].itertuples(index=False)]
-    shown["fit (s), median"] = [fmt(x) for x in table["fit_s_median"]]
-    header = (f"Sweep of {meta.get('date', '?')} on {meta.get('cpu', '?')}, commit {meta.get('commit', '?')}: "
-              f"{meta.get('runs', '?')} runs on {meta.get('executor', '?')}, 1 thread per run. Relative L2 on "
-              "the 100 x 201 grid against DOP853 at 1e-12, over seeds; fit seconds measured with other runs "
-              "sharing the cores (cached models report the cost recorded when trained). No latency is "
-              "measured in a sweep.\n\n")
-    return header + shown.to_markdown(index=False) + "\n"
-
-
-def write_outputs(store, out: Path, meta: dict) -> str:
-    """sweep.csv (every row, tidy) and sweep.md from `store`, atomically; returns the Markdown."""
-    import pandas as pd
-
-    from harness.store import UNIT_COLUMNS
-    from solvers.atomic import atomic_write
-
-    frame = pd.DataFrame(store.rows())
-    if not frame.empty:
-        # tidy: scalars only; list-valued measurements (whole trajectories) stay in rows.jsonl,
-        # list-valued swept options become their JSON text
-        listy = [c for c in frame.columns if frame[c].map(lambda v: isinstance(v, (list, tuple, dict))).any()]
-        frame = frame.drop(columns=[c for c in listy if not c.startswith("p_")]).assign(**{
-            c: frame[c].map(lambda v: json.dumps(v) if isinstance(v, (list, tuple)) else v)
-            for c in listy if c.startswith("p_")})
-        front = [c for c in (*UNIT_COLUMNS, "point") if c in frame.columns]
-        params = sorted(c for c in frame.columns if c.startswith("p_"))
-        rest = [c for c in frame.columns if c not in front and c not in params]
-        frame = frame[[*front, *params, *rest]]
-    atomic_write(out / "sweep.csv", frame.to_csv(index=False))
-    markdown = _markdown(summary_table(frame), meta)
-    atomic_write(out / "sweep.md", markdown)
-    return markdown
-
-
-# ---------------------------------------------------------------------------------------------- CLI
 
 HELP = "run a grid of adapter options x seeds x cases (accuracy and training cost, no latency)"
 EPILOG = """\
@@ -179,7 +97,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def cmd_sweep(args: argparse.Namespace) -> int:
     """`swingbench sweep`: 0 when every run was measured, 1 when a unit of work failed (its rows
     say why; one line names them) or the executor lost some (`--resume` runs them), 2 (a
-    `UsageError`) for a bad spec, 130 on Ctrl-C."""
+    `UsageError`) for a bad spec or a Dask executor that cannot be had, 130 on Ctrl-C."""
     from harness.usage import UsageError
 
     if args.workers < 1:
@@ -199,6 +117,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.cli.outcome import outcome
     from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
+    from harness.report.sweep import write_outputs
     from harness.run import executors
     from harness.run.runner import execute
     from solvers.atomic import atomic_write
@@ -219,6 +138,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         with executors.choose(args.scheduler, args.dask_local, args.workers,
                               local=executors.joblib(args.workers)) as run:
             counts = execute(units, settings, store, run, progress=progress_setting(args), done=done)
+    except executors.ExecutorUnavailable as exc:
+        raise UsageError(f"swingbench: {exc}") from None
     except KeyboardInterrupt:
         print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)
         return 130

@@ -19,11 +19,15 @@ from harness.measure.timing import THREAD_ENV
 from harness.run.plan import Unit
 from harness.run.runner import inline, run_unit_in_worker
 from harness.settings import Settings
-from harness.usage import UsageError
 
-__all__ = ["choose", "dask", "dask_client", "inline", "joblib"]
+__all__ = ["ExecutorUnavailable", "choose", "dask", "dask_client", "inline", "joblib"]
 
 Jobs = list[tuple[Unit, tuple[str, ...]]]
+
+
+class ExecutorUnavailable(RuntimeError):
+    """The executor asked for cannot be had (Dask is not installed, its scheduler cannot be
+    reached), found before any unit runs: bad input to a command, which says so as its usage error."""
 
 
 def _lost(job: tuple[Unit, tuple[str, ...]], why: str) -> Iterator[tuple[Unit, str, None]]:
@@ -91,18 +95,18 @@ def dask(client: Any):
 @contextlib.contextmanager
 def dask_client(scheduler: str | None, workers: int, threads: int = 1) -> Iterator[Any]:
     """A client of the scheduler at `scheduler`, or of a LocalCluster of `workers` processes with
-    `threads` threads each when `scheduler` is None. Exits with one line when Dask is missing or the
+    `threads` threads each when `scheduler` is None. `ExecutorUnavailable` when Dask is missing or the
     scheduler cannot be reached."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise UsageError("swingbench: --scheduler/--dask-local need dask.distributed: "
-                         "pip install 'swingbench[dask]'") from None
+        raise ExecutorUnavailable("--scheduler/--dask-local need dask.distributed: "
+                                  "pip install 'swingbench[dask]'") from None
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, ValueError) as exc:
-            raise UsageError(f"swingbench: cannot connect to the dask scheduler {scheduler}: {exc}") from None
+            raise ExecutorUnavailable(f"cannot connect to the dask scheduler {scheduler}: {exc}") from None
         with client:
             counts = client.nthreads()
             if any(n > threads for n in counts.values()):
@@ -120,7 +124,8 @@ def dask_client(scheduler: str | None, workers: int, threads: int = 1) -> Iterat
 def choose(scheduler: str | None, dask_local: bool, workers: int, threads: int = 1,
            local: Any = None) -> Iterator[Any]:
     """The executor the command line names: the Dask scheduler at `scheduler`, a LocalCluster of
-    `workers` processes (`dask_local`), or else `local` (None: `inline`, this process)."""
+    `workers` processes (`dask_local`), or else `local` (None: `inline`, this process).
+    `ExecutorUnavailable` on entering it when the Dask one cannot be had."""
     if scheduler is None and not dask_local:
         yield local or inline
         return
