@@ -14,7 +14,7 @@ Parameters: `case` is every forward case of the run's settings (`SETTINGS.cases`
 identify on that case's identification case (`harness.suites.identification_case`: the SMIB's
 "smib-identification" with the run's (m, d) pairs, a network itself with its own parameters as the
 truth). `solver` is every name of the registry `solvers.SOLVERS`; `config` is every label of
-`harness.selection.default_specs` (the adapter's named config plus its option overrides other than the
+`harness.run.selection.default_specs` (the adapter's named config plus its option overrides other than the
 training budget, e.g. "default,batch=stacked"). A triple that the harness does not run (a pair it
 does not run, or a spec that the planner leaves off the case, `harness.run.plan.not_on_case`, e.g. a
 PINN config not made for networks on a network) is skipped without a process (asv `skip_params`); an
@@ -47,7 +47,7 @@ import numpy as np
 from benchmarks import THREADS
 from harness.model_cache import fit_or_load
 from harness.run.plan import left_out, not_on_case
-from harness.selection import default_specs
+from harness.run.selection import default_specs
 from harness.settings import DEFAULT, QUICK, Settings, SolverSpec
 from harness.suites import SUITES, identification_case
 from harness.suites.accuracy import COI_DELTA, accuracy

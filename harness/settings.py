@@ -1,7 +1,7 @@
 """What a run measures: solver specifications (adapter, named config, seed, option overrides) and
 the settings of a run (budgets, seeds, pairs, noise levels, the `Limits` a unit may run under), with
 the presets QUICK, DEFAULT and FULL. Which specs a run makes from the names it is given is
-`harness.selection`'s."""
+`harness.run.selection`'s."""
 
 from __future__ import annotations
 
@@ -109,7 +109,7 @@ class Settings:
     took 520 s on wscc9, measured); `case_pinn_options` gives a case's PINN fits their budget
     (iterations per window, `harness.run.plan`). The verdict suite (`harness.suites.verdict`) measures
     the PINNs of `verdict_pinns` ((adapter, configs, options its spec has): by default the JAX PINN,
-    `swingbench run --verdict-pinn` sets any trained adapters, `harness.selection.parse_verdict_pinns`; the
+    `swingbench run --verdict-pinn` sets any trained adapters, `harness.run.selection.parse_verdict_pinns`; the
     suite times each of its query paths itself), each trained from `verdict_seeds`, against their rivals matched on
     the sweeps of `verdict_rtols` (half decades: a rival is at most ~3x more accurate in rtol
     than it needs to be; from 3e-2, coarser than ode45's 1e-3, so that a sweep point lies within

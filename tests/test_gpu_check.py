@@ -13,7 +13,7 @@ import pytest
 
 from harness.cli import _parser
 from harness.cli.run import _suite_names
-from harness.selection import default_specs, parse_option, with_options
+from harness.run.selection import default_specs, parse_option, with_options
 from solvers import SOLVERS
 from systems.cases import CASES
 

@@ -12,7 +12,7 @@ import pytest
 
 from harness.run.plan import FIT, Unit, left_out, not_on_case, plan
 from harness.run.runner import run_unit
-from harness.selection import default_specs
+from harness.run.selection import default_specs
 from harness.settings import DEFAULT, FULL, QUICK, SolverSpec
 from harness.suites import DEFAULT_SUITES, SUITES, identification_case
 from solvers import SOLVERS, make_solver

@@ -1,4 +1,4 @@
-"""The settings of a run (`harness.settings`) and the specs it makes (`harness.selection`): the sweeps
+"""The settings of a run (`harness.settings`) and the specs it makes (`harness.run.selection`): the sweeps
 and budgets of make bench, option overrides."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import pytest
 
-from harness.selection import default_specs
+from harness.run.selection import default_specs
 from harness.settings import DEFAULT, QUICK
 from systems.cases import SMIB_INFERENCE
 
@@ -39,7 +39,7 @@ def test_python_driven_adapters_sweep_fewer_tolerances_on_networks_only():
 
 
 def test_option_overrides_reach_the_adapters_that_have_them_and_are_validated():
-    from harness.selection import parse_option, with_options
+    from harness.run.selection import parse_option, with_options
 
     assert parse_option("max_iterations=100") == ("max_iterations", 100)
     assert parse_option("optimizer=lbfgs") == ("optimizer", "lbfgs")

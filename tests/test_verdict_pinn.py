@@ -15,7 +15,7 @@ import pytest
 import solvers
 from harness.cli import main
 from harness.run.plan import plan
-from harness.selection import default_specs, parse_verdict_pinns
+from harness.run.selection import default_specs, parse_verdict_pinns
 from harness.settings import QUICK
 from harness.store import RowStore
 from harness.suites import SUITES

@@ -120,7 +120,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.run import executors
     from harness.run.plan import plan
     from harness.run.runner import check_units, execute
-    from harness.selection import default_specs, parse_option, parse_verdict_pinns, with_options
+    from harness.run.selection import default_specs, parse_option, parse_verdict_pinns, with_options
     from harness.settings import DEFAULT, FULL, QUICK, Limits
     from harness.suites import DEFAULT_SUITES, SUITES
     from solvers import SOLVERS, solver_class
