@@ -59,6 +59,29 @@ def test_linear_basis_is_orthonormal_and_holds_the_response(wscc9):
     assert np.linalg.norm(left) / np.linalg.norm(deviation) < 5e-2
 
 
+def test_the_normal_equations_from_the_structure_are_those_of_the_jacobian(wscc9):
+    """J^T J and J^T r assembled from the network's structure (data and physics rows) equal the
+    products of the Jacobian that automatic differentiation forms, at random weights and points."""
+    from solvers.pinn.reduced import Layout, WindowData, init_weights, window_functions
+
+    rng = np.random.default_rng(1)
+    k, n_u, n_f = 3, 11, 5
+    basis = np.linalg.qr(rng.normal(size=(wscc9.n, k)))[0]
+    layout = Layout((2, 7, 6, k), 1.0, wscc9.p1_min, wscc9.p1_max)
+
+    def p1(size):
+        return rng.uniform(wscc9.p1_min, wscc9.p1_max, size)
+
+    data = WindowData(rng.uniform(0, 1, n_u), p1(n_u), *rng.normal(size=(3, n_u, k)),
+                      rng.uniform(0, 1, n_f), p1(n_f), *0.1 * rng.normal(size=(2, n_f, k)))
+    theta = init_weights(layout, 0) + 0.3 * rng.normal(size=layout.n_params)
+    residuals, jacobian, normal_equations = window_functions(wscc9, layout, basis, np.asarray(wscc9.delta0), data, 0.3)
+    r, J = residuals(theta), jacobian(theta)
+    A, g = normal_equations(theta, r)
+    np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-12 * np.abs(J.T @ J).max())
+    np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-12 * np.abs(J.T @ r).max())
+
+
 @pytest.mark.parametrize(("case_name", "options", "message"), [
     ("smib", {}, "reduced-pinn is made for multi-machine cases; case 'smib-inference' is a smib case"),
     ("wscc9", {"snapshots": 1}, "option snapshots must be at least 2"),

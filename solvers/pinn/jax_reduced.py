@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport
 from solvers.classical.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.identification import Estimate
-from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
+from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
 from solvers.pinn.optim import levenberg_marquardt
 from solvers.pinn.reduced import (
     Layout,
@@ -48,8 +48,10 @@ class ReducedOptions(OptionSchema):
     (the horizon is cut into ceil(t_final / window) equal windows); hidden_layers x width tanh;
     n_f collocation points per window where the projected physics residual is evaluated (its
     P_e is the full network's, n^2 per point), weighted by `physics_weight` (rad/s^2 against the
-    data's rad); max_iterations Levenberg-Marquardt iterations per window; max_seconds (None: no
-    limit) the whole fit's budget, shared among the windows left; seed draws weights and points."""
+    data's rad); max_iterations Levenberg-Marquardt iterations per window, fewer where the last
+    10 iterations lowered the window's loss by less than the fraction `ftol` of it (None: all of
+    them); max_seconds (None: no limit) the whole fit's budget, shared among the windows left;
+    seed draws weights and points."""
 
     basis: Literal["pod", "linear"] = "pod"
     modes: PositiveInt | None = None
@@ -65,6 +67,7 @@ class ReducedOptions(OptionSchema):
     n_f: NonNegativeInt = 16
     physics_weight: PositiveFloat = 0.01
     max_iterations: PositiveInt = 60
+    ftol: Fraction | None = None
     max_seconds: PositiveFloat | None = None
     seed: NonNegativeInt = 0
     threads: PositiveInt = 2
@@ -157,11 +160,12 @@ class ReducedPinn(AbstractSolver):
         iterations, losses = 0, []
         for w in range(count):
             data = self._window_data(layout, thetas, w, nodes, t_data, targets, v0, rng)
-            residuals, jacobian = window_functions(case, layout, U, delta0, data, options["physics_weight"])
+            residuals, _, normal_equations = window_functions(case, layout, U, delta0, data, options["physics_weight"])
             now = time.perf_counter()
             with threadpool_limits(limits=1, user_api="blas"):  # XLA has the threads (as PinnSolver._train)
-                result = levenberg_marquardt(residuals, jacobian, theta, max_iterations=options["max_iterations"],
-                                             deadline=now + (deadline - now) / (count - w))
+                result = levenberg_marquardt(residuals, None, theta, max_iterations=options["max_iterations"],
+                                             deadline=now + (deadline - now) / (count - w),
+                                             normal_equations=normal_equations, ftol=options["ftol"] or 0.0)
             theta = result.theta  # the next window starts from this one's weights
             thetas = np.vstack([thetas, theta])
             iterations += result.iterations
