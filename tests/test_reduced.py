@@ -72,14 +72,16 @@ def test_the_normal_equations_from_the_structure_are_those_of_the_jacobian(wscc9
     def p1(size):
         return rng.uniform(wscc9.p1_min, wscc9.p1_max, size)
 
-    data = WindowData(rng.uniform(0, 1, n_u), p1(n_u), *rng.normal(size=(3, n_u, k)),
+    data = WindowData(rng.uniform(0, 1, n_u), p1(n_u), *rng.normal(size=(4, n_u, k)),
                       rng.uniform(0, 1, n_f), p1(n_f), *0.1 * rng.normal(size=(2, n_f, k)))
     theta = init_weights(layout, 0) + 0.3 * rng.normal(size=layout.n_params)
-    residuals, jacobian, normal_equations = window_functions(wscc9, layout, basis, np.asarray(wscc9.delta0), data, 0.3)
-    r, J = residuals(theta), jacobian(theta)
-    A, g = normal_equations(theta, r)
-    np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-12 * np.abs(J.T @ J).max())
-    np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-12 * np.abs(J.T @ r).max())
+    for rate_weight, rows in ((0.0, k * n_u), (0.2, 2 * k * n_u)):  # with the rates' rows and without
+        functions = window_functions(wscc9, layout, basis, np.asarray(wscc9.delta0), data, 0.3, rate_weight)
+        r, J = functions[0](theta), functions[1](theta)
+        A, g = functions[2](theta, r)
+        assert r.size == rows + k * n_f
+        np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-12 * np.abs(J.T @ J).max())
+        np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-12 * np.abs(J.T @ r).max())
 
 
 @pytest.mark.parametrize(("case_name", "options", "message"), [

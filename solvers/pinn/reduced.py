@@ -152,7 +152,8 @@ def walk_starts(layout: Layout, thetas: np.ndarray, P1: np.ndarray, v0: np.ndarr
 @dataclass(frozen=True)
 class WindowData:
     """One window's training points: data (tau_u, p_u, starts (a_s, v_s) (n_u, k) each, targets
-    (n_u, k) rad: U^T (delta - delta0) of the snapshots) and collocation points (tau_f, p_f, their
+    (n_u, k) rad: U^T (delta - delta0) of the snapshots, rate_targets (n_u, k) rad/s: U^T omega,
+    or (0, k) where the rates are not trained on) and collocation points (tau_f, p_f, their
     starts). Either set may be empty."""
 
     tau_u: np.ndarray
@@ -160,6 +161,7 @@ class WindowData:
     a_u: np.ndarray
     v_u: np.ndarray
     targets: np.ndarray
+    rate_targets: np.ndarray
     tau_f: np.ndarray
     p_f: np.ndarray
     a_f: np.ndarray
@@ -186,11 +188,15 @@ def _forcing(c: dict[str, Any], a: Any) -> Any:
 
 
 @functools.lru_cache(maxsize=8)
-def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_physics: bool) -> tuple[Any, Any]:
+def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_physics: bool,
+                rate_weight: float = 0.0) -> tuple[Any, Any]:
     """The jitted residuals and Jacobian of (theta, points, constants) of windows of `layout`:
     compiled once for every window of a fit (and every fit of the same shapes in the process)."""
     def data_rows(theta, tau, p, a_s, v_s, target):
         return _coefficients(layout, theta, tau, p, a_s, v_s) - target
+
+    def rate_rows(theta, tau, p, a_s, v_s, target):
+        return rate_weight * (_rates(layout, theta, tau, p, a_s, v_s)[1] - target)
 
     def physics_rows(theta, c, tau, p, a_s, v_s):
         a, a_t, a_tt = _accelerations(layout, theta, tau, p, a_s, v_s)
@@ -207,6 +213,10 @@ def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_phy
             fn = jax.jacrev(data_rows) if jacobian else data_rows
             blocks.append(jax.vmap(fn, (None, 0, 0, 0, 0, 0))(theta, x["tau_u"], x["p_u"], x["a_u"], x["v_u"],
                                                               x["targets"]))
+        if with_data and rate_weight > 0:
+            fn = jax.jacrev(rate_rows) if jacobian else rate_rows
+            blocks.append(jax.vmap(fn, (None, 0, 0, 0, 0, 0))(theta, x["tau_u"], x["p_u"], x["a_u"], x["v_u"],
+                                                              x["rate_targets"]))
         if with_physics:
             fn = jac_row if jacobian else row
             blocks.append(jax.vmap(fn, (None, None, 0, 0, 0, 0))(theta, c, x["tau_f"], x["p_f"], x["a_f"], x["v_f"]))
@@ -220,13 +230,13 @@ def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_phy
 @functools.lru_cache(maxsize=8)
 def _features_jit(layout: Layout, order: int) -> Any:
     """Jitted (theta_h, tau (n,), P1 (n,)) -> (the last hidden layer and its tau derivatives up to
-    `order` (0 or 2), (n, order + 1, width), and their Jacobians of the hidden parameters
+    `order` (0, 1 or 2), (n, order + 1, width), and their Jacobians of the hidden parameters
     theta_h, (n, order + 1, width, n_hidden))."""
     def jet(theta_h, tau, p):
         f = functools.partial(_features, layout, theta_h, p=p)
-        if order == 0:
-            return f(tau=tau)[None]
         first = lambda s: jax.jvp(lambda u: f(tau=u), (s,), (jnp.ones_like(s),))
+        if order < 2:
+            return jnp.stack(first(tau)[:order + 1])
         (h, h_t), (_, h_tt) = jax.jvp(first, (tau,), (jnp.ones_like(tau),))
         return jnp.stack([h, h_t, h_tt])
 
@@ -244,18 +254,21 @@ def _stiffness_jit(layout: Layout) -> Any:
 
 
 def window_functions(case: Case, layout: Layout, U: np.ndarray, delta0: np.ndarray, data: WindowData,
-                     physics_weight: float) -> tuple[Any, Any, NormalEquations]:
+                     physics_weight: float, rate_weight: float = 0.0) -> tuple[Any, Any, NormalEquations]:
     """(residuals, jacobian, normal_equations) of theta (numpy float64 in and out) for one window:
-    rows [a - target for each data point and coefficient (rad), physics_weight g for each
-    collocation point and coefficient (rad/s^2)], their Jacobian (rows, n_params) by automatic
+    rows [a - target for each data point and coefficient (rad), rate_weight (a' - rate target)
+    for each (rad; none where rate_weight is 0 (s)), physics_weight g for each collocation point
+    and coefficient (rad/s^2)], their Jacobian (rows, n_params) by automatic
     differentiation, and (J^T J, J^T r) at (theta, r) from the Jacobian's structure
     (`solvers.pinn.reduced_normal`; the same products, several times cheaper)."""
     with jax.enable_x64(True):
         constants = _constants(case, U, delta0)
         points = {name: jnp.asarray(getattr(data, name)) for name in WindowData.__dataclass_fields__}
     with_data, with_physics = bool(data.tau_u.size), bool(data.tau_f.size)
-    res_fn, jac_fn = _window_jit(layout, float(physics_weight), with_data, with_physics)
-    rows_u = data.targets.size
+    with_rates = with_data and rate_weight > 0
+    res_fn, jac_fn = _window_jit(layout, float(physics_weight), with_data, with_physics,
+                                 float(rate_weight) if with_rates else 0.0)
+    rows_u = data.targets.size * (2 if with_rates else 1)
     width, k, n_h = layout.sizes[-2], layout.sizes[-1], layout.n_hidden
     identity, damping = np.eye(k), np.asarray(constants["Dk"])
 
@@ -274,7 +287,11 @@ def window_functions(case: Case, layout: Layout, U: np.ndarray, delta0: np.ndarr
         A, g = np.zeros((theta.size, theta.size)), np.zeros(theta.size)
         W = theta[n_h:n_h + width * k].reshape(width, k)
         if with_data:
-            e, de = jets(0, data.tau_u, *features(theta, "tau_u", "p_u", 0))
+            h, dh = features(theta, "tau_u", "p_u", int(with_rates))
+            e, de = jets(0, data.tau_u, h, dh)
+            if with_rates:
+                e_t, de_t = jets(1, data.tau_u, h, dh)
+                e, de = np.concatenate([e, rate_weight * e_t]), np.concatenate([de, rate_weight * de_t])
             A, g = data_normal_equations(e, de, W, r[:rows_u].reshape(-1, k))
         if with_physics:
             h, dh = features(theta, "tau_f", "p_f", 2)

@@ -27,8 +27,8 @@ __all__ = ["data_normal_equations", "jets", "physics_jacobian"]
 def jets(order: int, tau: np.ndarray, features: np.ndarray, d_features: np.ndarray,
          ) -> tuple[np.ndarray, np.ndarray]:
     """(e (n, w + 1), de (n, w, P_h)) of a's tau derivative of `order` (0, 1 or 2) at n points:
-    a = a_s + phi v_s + phi^2 (h W + b), phi = 1 - exp(-tau). features (n, 3, w): h, h_t, h_tt
-    (only h for order 0: (n, 1, w)); d_features (n, 3 or 1, w, P_h) their Jacobians of the hidden
+    a = a_s + phi v_s + phi^2 (h W + b), phi = 1 - exp(-tau). features (n, >= order + 1, w): h,
+    h_t, h_tt, as many as there are; d_features (n, same, w, P_h) their Jacobians of the hidden
     parameters."""
     phi, dphi = 1.0 - np.exp(-tau), np.exp(-tau)  # phi'' = -phi'
     weights = [[phi * phi], [2 * phi * dphi, phi * phi], [2 * (dphi * dphi - phi * dphi), 4 * phi * dphi, phi * phi]]
