@@ -56,8 +56,8 @@ class ReducedOptions(OptionSchema):
 
     basis: Literal["pod", "linear"] = "pod"
     modes: PositiveInt | None = None
-    pod_tolerance: PositiveFloat = 1e-10
-    max_modes: PositiveInt = 40
+    pod_tolerance: PositiveFloat = 1e-12
+    max_modes: PositiveInt = 60
     snapshots: PositiveInt = 9
     snapshot_dt: PositiveFloat = 0.05
     snapshot_rtol: PositiveFloat = 1e-9
@@ -68,8 +68,8 @@ class ReducedOptions(OptionSchema):
     width: PositiveInt = 20
     n_f: NonNegativeInt = 16
     physics_weight: PositiveFloat = 0.01
-    max_iterations: PositiveInt = 60
-    ftol: Fraction | None = None
+    max_iterations: PositiveInt = 150
+    ftol: Fraction | None = 0.01
     max_seconds: PositiveFloat | None = None
     seed: NonNegativeInt = 0
     threads: PositiveInt = 2
