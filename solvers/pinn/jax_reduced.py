@@ -163,11 +163,13 @@ class ReducedPinn(AbstractSolver):
         iterations, losses = 0, []
         for w in range(count):
             data = self._window_data(layout, thetas, w, nodes, t_data, targets, v0, rng)
-            residuals, _, normal_equations = window_functions(case, layout, U, delta0, data, options["physics_weight"],
-                                                              options["rate_weight"] or 0.0)
+            residuals, jacobian, normal_equations = window_functions(case, layout, U, delta0, data,
+                                                                     options["physics_weight"], options["rate_weight"] or 0.0)
+            if basis.modes <= options["width"]:  # J^T J from J costs n k P^2 against n width P_h^2: k > width pays
+                normal_equations = None
             now = time.perf_counter()
             with threadpool_limits(limits=1, user_api="blas"):  # XLA has the threads (as PinnSolver._train)
-                result = levenberg_marquardt(residuals, None, theta, max_iterations=options["max_iterations"],
+                result = levenberg_marquardt(residuals, jacobian, theta, max_iterations=options["max_iterations"],
                                              deadline=now + (deadline - now) / (count - w),
                                              normal_equations=normal_equations, ftol=options["ftol"] or 0.0)
             theta = result.theta  # the next window starts from this one's weights
