@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport
 from solvers.classical.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.identification import Estimate
-from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
+from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
 from solvers.pinn.optim import levenberg_marquardt
 from solvers.pinn.reduced import (
     Layout,
@@ -44,27 +44,32 @@ class ReducedOptions(OptionSchema):
     (None: the fewest POD modes keeping all but `pod_tolerance` of the snapshots' squared norm, at
     most `max_modes`; the linear basis takes `max_modes`); snapshots: numba-rk trajectories at that
     many Chebyshev-Lobatto P1 values (>= 2), every `snapshot_dt` s, DOP853 at `snapshot_rtol`;
-    data: train on them (False: physics alone); window (s): the time-marching windows' length
+    data: train on them (False: physics alone), their rates U^T omega too, weighted by `rate_weight` (s: rad/s
+    against rad; None: not); window (s): the time-marching windows' length
     (the horizon is cut into ceil(t_final / window) equal windows); hidden_layers x width tanh;
     n_f collocation points per window where the projected physics residual is evaluated (its
     P_e is the full network's, n^2 per point), weighted by `physics_weight` (rad/s^2 against the
-    data's rad); max_iterations Levenberg-Marquardt iterations per window; max_seconds (None: no
-    limit) the whole fit's budget, shared among the windows left; seed draws weights and points."""
+    data's rad); max_iterations Levenberg-Marquardt iterations per window, fewer where the last
+    10 iterations lowered the window's loss by less than the fraction `ftol` of it (None: all of
+    them); max_seconds (None: no limit) the whole fit's budget, shared among the windows left;
+    seed draws weights and points."""
 
     basis: Literal["pod", "linear"] = "pod"
     modes: PositiveInt | None = None
-    pod_tolerance: PositiveFloat = 1e-10
-    max_modes: PositiveInt = 40
+    pod_tolerance: PositiveFloat = 1e-12
+    max_modes: PositiveInt = 60
     snapshots: PositiveInt = 9
     snapshot_dt: PositiveFloat = 0.05
     snapshot_rtol: PositiveFloat = 1e-9
     data: StrictBool = True
+    rate_weight: PositiveFloat | None = None
     window: PositiveFloat = 1.0
     hidden_layers: PositiveInt = 2
     width: PositiveInt = 20
     n_f: NonNegativeInt = 16
     physics_weight: PositiveFloat = 0.01
-    max_iterations: PositiveInt = 60
+    max_iterations: PositiveInt = 150
+    ftol: Fraction | None = 0.01
     max_seconds: PositiveFloat | None = None
     seed: NonNegativeInt = 0
     threads: PositiveInt = 2
@@ -139,7 +144,8 @@ class ReducedPinn(AbstractSolver):
         t_data = np.linspace(0.0, case.t_final, round(case.t_final / options["snapshot_dt"]) + 1)
         snapshot_s = basis_s = 0.0
         if options["basis"] == "pod":
-            snapshots = solver_snapshots(case, nodes, t_data, options["snapshot_rtol"])[0] - delta0
+            snapshots, rates = solver_snapshots(case, nodes, t_data, options["snapshot_rtol"])
+            snapshots = snapshots - delta0
             snapshot_s = time.perf_counter() - start
             basis = pod_basis(snapshots, options["modes"], options["pod_tolerance"], most=options["max_modes"])
         else:
@@ -150,18 +156,22 @@ class ReducedPinn(AbstractSolver):
         layout = Layout((2,) + (options["width"],) * options["hidden_layers"] + (basis.modes,),
                         case.t_final / count, case.p1_min, case.p1_max)
         v0 = np.asarray(case.omega0, np.float64) @ U
-        targets = snapshots @ U if options["data"] else None
+        targets = (snapshots @ U, rates @ U) if options["data"] else None
         rng = np.random.default_rng(np.random.SeedSequence([options["seed"], 0xC0110C]))
         thetas = np.zeros((0, layout.n_params))
         theta = init_weights(layout, options["seed"])
         iterations, losses = 0, []
         for w in range(count):
             data = self._window_data(layout, thetas, w, nodes, t_data, targets, v0, rng)
-            residuals, jacobian = window_functions(case, layout, U, delta0, data, options["physics_weight"])
+            residuals, jacobian, normal_equations = window_functions(case, layout, U, delta0, data,
+                                                                     options["physics_weight"], options["rate_weight"] or 0.0)
+            if basis.modes <= options["width"]:  # J^T J from J costs n k P^2 against n width P_h^2: k > width pays
+                normal_equations = None
             now = time.perf_counter()
             with threadpool_limits(limits=1, user_api="blas"):  # XLA has the threads (as PinnSolver._train)
                 result = levenberg_marquardt(residuals, jacobian, theta, max_iterations=options["max_iterations"],
-                                             deadline=now + (deadline - now) / (count - w))
+                                             deadline=now + (deadline - now) / (count - w),
+                                             normal_equations=normal_equations, ftol=options["ftol"] or 0.0)
             theta = result.theta  # the next window starts from this one's weights
             thetas = np.vstack([thetas, theta])
             iterations += result.iterations
@@ -179,18 +189,21 @@ class ReducedPinn(AbstractSolver):
         return FitReport(seconds=0.0, iterations=iterations, loss=float(sum(losses)), message=message)
 
     def _window_data(self, layout: Layout, thetas: np.ndarray, w: int, nodes: np.ndarray, t_data: np.ndarray,
-                     targets: np.ndarray | None, v0: np.ndarray, rng: np.random.Generator) -> WindowData:
-        """Window w's data points (the snapshots' times within it, at every node) and `n_f`
-        uniform collocation points, each with the start the trained windows reach at P1."""
+                     targets: tuple[np.ndarray, np.ndarray] | None, v0: np.ndarray,
+                     rng: np.random.Generator) -> WindowData:
+        """Window w's data points (the snapshots' times within it, at every node; `targets` the
+        snapshots' (a, a') (n_nodes, n_t, k) each) and `n_f` uniform collocation points, each
+        with the start the trained windows reach at P1."""
         t_w, length, k = w * layout.window, layout.window, v0.size
-        empty = np.zeros(0), np.zeros(0), np.zeros((0, k)), np.zeros((0, k)), np.zeros((0, k))
+        empty = np.zeros(0), np.zeros(0), *np.zeros((4, 0, k))
         if targets is None:
             data = empty
         else:
             inside = np.flatnonzero((t_data >= t_w - 1e-12) & (t_data <= t_w + length + 1e-12))
             a_s, v_s = walk_starts(layout, thetas, nodes, v0)
             data = (np.tile(t_data[inside] - t_w, nodes.size), np.repeat(nodes, inside.size),
-                    np.repeat(a_s, inside.size, 0), np.repeat(v_s, inside.size, 0), targets[:, inside].reshape(-1, k))
+                    np.repeat(a_s, inside.size, 0), np.repeat(v_s, inside.size, 0),
+                    *(x[:, inside].reshape(-1, k) for x in targets))
         n_f = self.options["n_f"]
         tau_f = rng.uniform(0.0, length, n_f)
         p_f = rng.uniform(layout.p_lo, layout.p_hi, n_f)

@@ -27,6 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from solvers.pinn.architecture import glorot_weights, layer_shapes, split_flat
+from solvers.pinn.optim import NormalEquations
+from solvers.pinn.reduced_normal import data_normal_equations, jets, physics_jacobian
 from systems.cases import Case
 from systems.model import Coupling, coupling, electrical_power
 
@@ -51,6 +53,12 @@ class Layout:
     def n_params(self) -> int:
         return sum(int(np.prod(s)) for s in self.shapes)
 
+    @property
+    def n_hidden(self) -> int:
+        """The hidden layers' parameters, the first entries of the flat vector (the output
+        layer's W (width, k) and b (k,) follow)."""
+        return sum(int(np.prod(s)) for s in self.shapes[:-2])
+
     def split(self, theta: Any) -> list[tuple[Any, Any]]:
         """[(W, b), ...] views of the flat vector `theta`."""
         arrays = split_flat(self.shapes, theta)[0]
@@ -63,16 +71,22 @@ def init_weights(layout: Layout, seed: int) -> np.ndarray:
     return np.concatenate(glorot_weights(layout.sizes, rng))
 
 
+def _features(layout: Layout, theta: Any, tau: Any, p: Any) -> Any:
+    """The last hidden layer (width,) at scalar tau (s) and P1 (p.u.); `theta` the whole flat
+    vector or its first `layout.n_hidden` entries (the hidden layers')."""
+    x = jnp.stack([tau * (2.0 / layout.window) - 1.0, (p - layout.p_lo) * (2.0 / (layout.p_hi - layout.p_lo)) - 1.0])
+    arrays = split_flat(layout.shapes[:-2], theta)[0]
+    h = x
+    for w, b in zip(arrays[0::2], arrays[1::2]):
+        h = jnp.tanh(h @ w + b)
+    return h
+
+
 def _coefficients(layout: Layout, theta: Any, tau: Any, p: Any, a_s: Any, v_s: Any) -> Any:
     """a (k,) at scalar tau (s) and P1 (p.u.) from the start (a_s, v_s) (k,) each."""
-    x = jnp.stack([tau * (2.0 / layout.window) - 1.0, (p - layout.p_lo) * (2.0 / (layout.p_hi - layout.p_lo)) - 1.0])
-    layers = layout.split(theta)
-    h = x
-    for w, b in layers[:-1]:
-        h = jnp.tanh(h @ w + b)
-    w, b = layers[-1]
+    w, b = layout.split(theta)[-1]
     phi = 1.0 - jnp.exp(-tau)
-    return a_s + phi * (v_s + phi * (h @ w + b))
+    return a_s + phi * (v_s + phi * (_features(layout, theta, tau, p) @ w + b))
 
 
 def _rates(layout: Layout, theta: Any, tau: Any, p: Any, a_s: Any, v_s: Any) -> tuple[Any, Any]:
@@ -138,7 +152,8 @@ def walk_starts(layout: Layout, thetas: np.ndarray, P1: np.ndarray, v0: np.ndarr
 @dataclass(frozen=True)
 class WindowData:
     """One window's training points: data (tau_u, p_u, starts (a_s, v_s) (n_u, k) each, targets
-    (n_u, k) rad: U^T (delta - delta0) of the snapshots) and collocation points (tau_f, p_f, their
+    (n_u, k) rad: U^T (delta - delta0) of the snapshots, rate_targets (n_u, k) rad/s: U^T omega,
+    or (0, k) where the rates are not trained on) and collocation points (tau_f, p_f, their
     starts). Either set may be empty."""
 
     tau_u: np.ndarray
@@ -146,6 +161,7 @@ class WindowData:
     a_u: np.ndarray
     v_u: np.ndarray
     targets: np.ndarray
+    rate_targets: np.ndarray
     tau_f: np.ndarray
     p_f: np.ndarray
     a_f: np.ndarray
@@ -172,11 +188,15 @@ def _forcing(c: dict[str, Any], a: Any) -> Any:
 
 
 @functools.lru_cache(maxsize=8)
-def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_physics: bool) -> tuple[Any, Any]:
+def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_physics: bool,
+                rate_weight: float = 0.0) -> tuple[Any, Any]:
     """The jitted residuals and Jacobian of (theta, points, constants) of windows of `layout`:
     compiled once for every window of a fit (and every fit of the same shapes in the process)."""
     def data_rows(theta, tau, p, a_s, v_s, target):
         return _coefficients(layout, theta, tau, p, a_s, v_s) - target
+
+    def rate_rows(theta, tau, p, a_s, v_s, target):
+        return rate_weight * (_rates(layout, theta, tau, p, a_s, v_s)[1] - target)
 
     def physics_rows(theta, c, tau, p, a_s, v_s):
         a, a_t, a_tt = _accelerations(layout, theta, tau, p, a_s, v_s)
@@ -193,6 +213,10 @@ def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_phy
             fn = jax.jacrev(data_rows) if jacobian else data_rows
             blocks.append(jax.vmap(fn, (None, 0, 0, 0, 0, 0))(theta, x["tau_u"], x["p_u"], x["a_u"], x["v_u"],
                                                               x["targets"]))
+        if with_data and rate_weight > 0:
+            fn = jax.jacrev(rate_rows) if jacobian else rate_rows
+            blocks.append(jax.vmap(fn, (None, 0, 0, 0, 0, 0))(theta, x["tau_u"], x["p_u"], x["a_u"], x["v_u"],
+                                                              x["rate_targets"]))
         if with_physics:
             fn = jac_row if jacobian else row
             blocks.append(jax.vmap(fn, (None, None, 0, 0, 0, 0))(theta, c, x["tau_f"], x["p_f"], x["a_f"], x["v_f"]))
@@ -203,15 +227,50 @@ def _window_jit(layout: Layout, physics_weight: float, with_data: bool, with_phy
             jax.jit(lambda theta, x, c: stacked(physics_rows, physics_jacobian, theta, x, c, True)))
 
 
+@functools.lru_cache(maxsize=8)
+def _features_jit(layout: Layout, order: int) -> Any:
+    """Jitted (theta_h, tau (n,), P1 (n,)) -> (the last hidden layer and its tau derivatives up to
+    `order` (0, 1 or 2), (n, order + 1, width), and their Jacobians of the hidden parameters
+    theta_h, (n, order + 1, width, n_hidden))."""
+    def jet(theta_h, tau, p):
+        f = functools.partial(_features, layout, theta_h, p=p)
+        first = lambda s: jax.jvp(lambda u: f(tau=u), (s,), (jnp.ones_like(s),))
+        if order < 2:
+            return jnp.stack(first(tau)[:order + 1])
+        (h, h_t), (_, h_tt) = jax.jvp(first, (tau,), (jnp.ones_like(tau),))
+        return jnp.stack([h, h_t, h_tt])
+
+    def one(theta_h, tau, p):
+        return jet(theta_h, tau, p), jax.jacrev(jet)(theta_h, tau, p)
+    return jax.jit(jax.vmap(one, (None, 0, 0)))
+
+
+@functools.lru_cache(maxsize=8)
+def _stiffness_jit(layout: Layout) -> Any:
+    """Jitted (theta, constants, tau, P1, a_s, v_s) (n points) -> d U^T M^-1 P_e / da (n, k, k)."""
+    def one(theta, c, tau, p, a_s, v_s):
+        return jax.jacfwd(lambda a: _forcing(c, a))(_coefficients(layout, theta, tau, p, a_s, v_s))
+    return jax.jit(jax.vmap(one, (None, None, 0, 0, 0, 0)))
+
+
 def window_functions(case: Case, layout: Layout, U: np.ndarray, delta0: np.ndarray, data: WindowData,
-                     physics_weight: float) -> tuple[Any, Any]:
-    """(residuals, jacobian) of theta (numpy float64 in and out) for one window: rows
-    [a - target for each data point and coefficient (rad), physics_weight g for each collocation
-    point and coefficient (rad/s^2)], and their Jacobian (rows, n_params)."""
+                     physics_weight: float, rate_weight: float = 0.0) -> tuple[Any, Any, NormalEquations]:
+    """(residuals, jacobian, normal_equations) of theta (numpy float64 in and out) for one window:
+    rows [a - target for each data point and coefficient (rad), rate_weight (a' - rate target)
+    for each (rad; none where rate_weight is 0 (s)), physics_weight g for each collocation point
+    and coefficient (rad/s^2)], their Jacobian (rows, n_params) by automatic
+    differentiation, and (J^T J, J^T r) at (theta, r) from the Jacobian's structure
+    (`solvers.pinn.reduced_normal`; the same products, several times cheaper)."""
     with jax.enable_x64(True):
         constants = _constants(case, U, delta0)
         points = {name: jnp.asarray(getattr(data, name)) for name in WindowData.__dataclass_fields__}
-    res_fn, jac_fn = _window_jit(layout, float(physics_weight), bool(data.tau_u.size), bool(data.tau_f.size))
+    with_data, with_physics = bool(data.tau_u.size), bool(data.tau_f.size)
+    with_rates = with_data and rate_weight > 0
+    res_fn, jac_fn = _window_jit(layout, float(physics_weight), with_data, with_physics,
+                                 float(rate_weight) if with_rates else 0.0)
+    rows_u = data.targets.size * (2 if with_rates else 1)
+    width, k, n_h = layout.sizes[-2], layout.sizes[-1], layout.n_hidden
+    identity, damping = np.eye(k), np.asarray(constants["Dk"])
 
     def call(fn):
         def run(theta: np.ndarray) -> np.ndarray:
@@ -219,4 +278,31 @@ def window_functions(case: Case, layout: Layout, U: np.ndarray, delta0: np.ndarr
                 return np.asarray(fn(jnp.asarray(theta), points, constants), np.float64)
         return run
 
-    return call(res_fn), call(jac_fn)
+    def features(theta: np.ndarray, tau: str, p: str, order: int) -> tuple[np.ndarray, np.ndarray]:
+        with jax.enable_x64(True):
+            h, dh = _features_jit(layout, order)(jnp.asarray(theta[:n_h]), points[tau], points[p])
+        return np.asarray(h, np.float64), np.asarray(dh, np.float64)
+
+    def normal_equations(theta: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        A, g = np.zeros((theta.size, theta.size)), np.zeros(theta.size)
+        W = theta[n_h:n_h + width * k].reshape(width, k)
+        if with_data:
+            h, dh = features(theta, "tau_u", "p_u", int(with_rates))
+            e, de = jets(0, data.tau_u, h, dh)
+            if with_rates:
+                e_t, de_t = jets(1, data.tau_u, h, dh)
+                e, de = np.concatenate([e, rate_weight * e_t]), np.concatenate([de, rate_weight * de_t])
+            A, g = data_normal_equations(e, de, W, r[:rows_u].reshape(-1, k))
+        if with_physics:
+            h, dh = features(theta, "tau_f", "p_f", 2)
+            e, de = zip(*(jets(order, data.tau_f, h, dh) for order in range(3)))
+            with jax.enable_x64(True):
+                S = np.asarray(_stiffness_jit(layout)(jnp.asarray(theta), constants, points["tau_f"], points["p_f"],
+                                                      points["a_f"], points["v_f"]))
+            mix = -physics_weight * np.stack([S, *np.broadcast_arrays(damping, identity, S)[:2]], axis=1)
+            J = physics_jacobian(np.stack(e, 1), np.stack(de, 1), W, mix)
+            A += J.T @ J
+            g += J.T @ r[rows_u:]
+        return A, g
+
+    return call(res_fn), call(jac_fn), normal_equations
