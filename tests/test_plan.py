@@ -47,7 +47,9 @@ from systems.faults import FAULT_CASES
 # with the `identifies` capability: their units added, every other entry as it was (checked when
 # recorded); and when the PINNs' `fault-split` (marked an ablation of `fault-marching`) joined: its
 # units added to the full run, every other entry as it was; and when pinnsim joined: likewise (both re-recorded by
-# `tests/record_plan_before.py NAME`, which asserts it).
+# `tests/record_plan_before.py NAME`, which asserts it); and when make bench left torch-pinn out on
+# the fault cases (`Settings.fault_omit_solvers`): those entries skipped, their fits gone, every
+# other entry as it was (checked when recorded).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {
@@ -189,6 +191,16 @@ def test_make_bench_leaves_the_sweep_points_out_on_fault_cases_only_unless_named
     assert left_out(tight, step, latency, DEFAULT) is None
     assert left_out(default, fault, latency, DEFAULT) is None
     assert left_out(tight, fault, latency, replace(DEFAULT, fault_omit_marks=())) is None
+
+
+def test_make_bench_leaves_torch_out_on_fault_cases_only_unless_named():
+    fault, step = CASES["wscc9-bus8-line8-9"], CASES["wscc9"]
+    torch, jax = SolverSpec("torch-pinn", "fault-marching", seed=0), SolverSpec("jax-pinn", "fault-marching", seed=0)
+    latency = SUITES["latency"]
+    assert "torch-pinn not run on fault cases" in left_out(torch, fault, latency, DEFAULT)
+    assert left_out(replace(torch, config="marching"), step, latency, DEFAULT) is None
+    assert left_out(jax, fault, latency, DEFAULT) is None
+    assert left_out(torch, fault, latency, FULL) is None
 
 
 def test_query_path_variants_skip_identification_which_does_not_depend_on_them():

@@ -143,6 +143,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"swingbench run: --verdict-pinn {exc}") from None
     if args.config:  # a config named runs on the fault cases too
         settings = replace(settings, fault_omit_marks=())
+    if args.solver:  # and so does an adapter named
+        settings = replace(settings, fault_omit_solvers=tuple(s for s in settings.fault_omit_solvers if s not in args.solver))
     if args.noise_draws is not None:
         if args.noise_draws < 1:
             raise UsageError(f"swingbench run: --noise-draws must be >= 1, got {args.noise_draws}")

@@ -154,10 +154,14 @@ def left_out(spec: SolverSpec, case: Case, suite: Suite, settings: Settings,
     `settings.network_identify_cases`, and there every config not declared to identify networks
     (`IDENTIFIES_NETWORKS`; `identifiers`, the configs that are, for the message). A suite of fault
     cases (`Suite.fault_cases`) leaves out every step case. On a fault case, every suite leaves
-    out the configs with a mark in `settings.fault_omit_marks`."""
+    out the configs with a mark in `settings.fault_omit_marks` and every adapter in
+    `settings.fault_omit_solvers`."""
     if suite.fault_cases and case.fault is None:
         return f"skipped: {suite.name} measures fault cases only, and {case.name} has no fault"
     cls = solver_class(spec.solver)
+    if case.fault is not None and spec.solver in settings.fault_omit_solvers:
+        return (f"skipped: {spec.solver} not run on fault cases in the {settings.name} run "
+                f"(not a PINN of the verdicts; --full or --solver {spec.solver} runs it)")
     omitted = cls.marks(spec.config) & set(settings.fault_omit_marks) if case.fault is not None and cls else set()
     if omitted:
         return (f"skipped: config {spec.config} ({', '.join(sorted(omitted))}) not run on fault cases in the "
