@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -32,6 +34,18 @@ def test_interleaved_alternates_the_two_calls_and_swaps_their_order_every_pair()
 def test_a_warm_call_is_timed_after_an_untimed_one():
     calls = []
     assert warm_call_s(lambda: calls.append(1), calls=3) >= 0 and len(calls) == 4
+
+
+def test_a_call_over_the_limit_is_not_called_again():
+    calls = []
+
+    def slow():
+        calls.append(1)
+        time.sleep(0.02)
+
+    assert warm_call_s(slow, calls=3, slow_s=0.001) >= 0.02 and len(calls) == 2  # slow: one timed call
+    calls.clear()
+    assert warm_call_s(slow, calls=3, limit_s=0.01) >= 0.02 and len(calls) == 1  # over the limit: none
 
 
 def test_a_fast_call_is_timed_in_blocks_that_last_a_sample():

@@ -4,6 +4,7 @@ the classical surrogate beside the ODE solver, timed in the same rounds."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -188,3 +189,28 @@ def test_two_runs_agree_flip_or_tie_in_one_and_compare_exits_1_on_a_flip(monkeyp
     assert "Of the 3 ratios of run B, 0 (0 %) lie inside run A's 95 % interval" in compare.compare_block(Path("A"), Path("B"))
     runs["B"] = a
     assert compare.cmd_compare(args) == 0
+
+
+def test_a_rival_whose_first_call_is_over_the_limit_is_refused_after_that_call_alone(monkeypatch):
+    """`Rivals.best` refuses a sweep point whose call takes over the run's `max_query_s`; the
+    untimed first call tells, so no timed call follows it (a fine fixed step on a large grid took
+    minutes a call)."""
+    rivals = Rivals(CASE, replace(SETTINGS, max_query_s=0.005))
+    monkeypatch.setattr(rivals, "errors", lambda candidate, query: (0.0, 0.0))
+    calls: dict[str, int] = {}
+
+    class Slow:
+        name = "slow query"
+
+        def call(self, solver):
+            def run():
+                calls[solver] = calls.get(solver, 0) + 1
+                time.sleep(0.02)
+            return run
+
+    for family, points in rivals.sweeps.items():
+        points[0]._solver = family  # no adapter built: the fake query only counts its calls
+    rival, notes = rivals.best(Slow(), 1.0, 1.0)
+    assert rival is None and len(notes) == len(rivals.sweeps) > 0
+    assert all("skipped, out of time" in note for note in notes)
+    assert calls == dict.fromkeys(rivals.sweeps, 1)

@@ -47,13 +47,18 @@ def calls_per_sample(call_s: float) -> int:
     return max(1, math.ceil(SAMPLE_S / call_s))
 
 
-def warm_call_s(fn: Callable[[], Any], calls: int = 3, slow_s: float = math.inf) -> float:
+def warm_call_s(fn: Callable[[], Any], calls: int = 3, slow_s: float = math.inf,
+                limit_s: float = math.inf) -> float:
     """Seconds of one warm call of `fn`: the least of `calls` timed calls after one untimed call
     (compilation, caches and lazy set-up paid by it); of one timed call when the untimed one took
-    longer than `slow_s`."""
+    longer than `slow_s`; the untimed call's own seconds, and no timed call, when it took longer
+    than `limit_s` (a caller that refuses calls over `limit_s` need not pay for a second one)."""
     start = time.perf_counter()
     fn()
-    if time.perf_counter() - start > slow_s:
+    first = time.perf_counter() - start
+    if first > limit_s:
+        return first
+    if first > slow_s:
         calls = 1
     times = []
     for _ in range(calls):

@@ -177,12 +177,13 @@ class Rivals:
 
     def warm_call_s(self, candidate: Candidate, query: Query) -> float:
         """Seconds of one warm call of `candidate` on `query` (`harness.measure.paired.warm_call_s`: one
-        timed call only when the untimed first took over `SLOW_S`), measured once."""
+        timed call only when the untimed first took over `SLOW_S`, none when it took over the run's
+        `max_query_s`, which `best` refuses), measured once."""
         key = (candidate.label, query.name)
         if key not in self._seconds:
             call = query.call(candidate.solver())
             with candidate.blas():
-                self._seconds[key] = warm_call_s(call, slow_s=SLOW_S)
+                self._seconds[key] = warm_call_s(call, slow_s=SLOW_S, limit_s=self.settings.max_query_s)
         return self._seconds[key]
 
     def best(self, query: Query, delta: float, omega: float) -> tuple[Candidate | None, list[str]]:
