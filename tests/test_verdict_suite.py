@@ -191,6 +191,37 @@ def test_two_runs_agree_flip_or_tie_in_one_and_compare_exits_1_on_a_flip(monkeyp
     assert compare.cmd_compare(args) == 0
 
 
+def test_compare_says_how_the_surrogates_verdicts_held_and_exits_1_on_their_flip(monkeypatch):
+    import argparse
+
+    import pandas as pd
+
+    from harness.cli import compare
+
+    def run(*surrogate):
+        return {"verdict": pd.DataFrame([
+            {"suite": "verdict", "case": "wscc9", "solver": "jax-pinn", "config": "marching", "variant": "",
+             "status": "ok", "query": f"q{i}", "kind": "grid", "pinn_seed": 0, "label": "tie",
+             "ratio": 1.0, "ratio_low": 0.9, "ratio_high": 1.1, "pinn_rel_l2_delta": 1e-4, "pinn_rel_l2_omega": 1e-3,
+             "surrogate_label": label, "surrogate_ratio": ratio, "surrogate_ratio_low": ratio / 1.5,
+             "surrogate_ratio_high": ratio * 1.5}
+            for i, (label, ratio) in enumerate(surrogate)])}
+
+    a = run(("classical faster", 0.1), ("tie", 1.0), ("not applicable", np.nan))
+    b = run(("classical faster", 0.2), ("tie", 1.2), ("not applicable", np.nan))
+    both = compare_runs(a, b)
+    assert both["agreement"].tolist() == ["agree"] * 3 and both["surrogate agreement"].tolist() == ["agree"] * 3
+    runs = {"A": a, "B": b}
+    monkeypatch.setattr(compare, "_frames", lambda directory: runs[str(directory)])
+    block = compare.compare_block(Path("A"), Path("B"))
+    assert ("Against the classical surrogate, 3 verdicts in both runs: 3 agree, 0 flip, 0 are a tie in one run and "
+            "not in the other; 1 of run B's 2 ratios (50 %) inside run A's interval.") in block
+    args = argparse.Namespace(run_a=Path("A"), run_b=Path("B"), update_readme=None)
+    assert compare.cmd_compare(args) == 0
+    runs["B"] = run(("PINN faster", 5.0), ("tie", 1.0), ("not applicable", np.nan))
+    assert compare.cmd_compare(args) == 1  # the PINN's own verdicts agree; the surrogate's flip
+
+
 def test_a_rival_whose_first_call_is_over_the_limit_is_refused_after_that_call_alone(monkeypatch):
     """`Rivals.best` refuses a sweep point whose call takes over the run's `max_query_s`; the
     untimed first call tells, so no timed call follows it (a fine fixed step on a large grid took

@@ -134,7 +134,7 @@ def _block(frames_a: dict, frames_b: dict, sources: str, tables: bool = True) ->
     counts = both["agreement"].value_counts() if not both.empty else pd.Series(dtype=int)
     summary = (f"{len(both)} verdicts in both runs: {counts.get(AGREE, 0)} agree, {counts.get(FLIP, 0)} flip, "
                f"{len(both) - counts.get(AGREE, 0) - counts.get(FLIP, 0)} are a tie in one run and not in the other."
-               + _spread(both) + _sigma(frames_a, frames_b))
+               + _spread(both) + _sigma(frames_a, frames_b) + _surrogates(both))
     if not tables:
         return head + f"{summary} Every query and verdict of both: `swingbench compare` of the two folders.\n"
     return head + f"{summary}\n\n" + (names.table(table).to_markdown(index=False) if not table.empty else "") + "\n"
@@ -158,6 +158,28 @@ def _spread(both) -> str:
     return (f" Of the {len(timed)} ratios of run B, {inside} ({100 * inside / len(timed):.0f} %) lie inside run A's 95 % "
             f"interval; between the runs a ratio moved by a factor of {factor.median():.2f} (median), at most "
             f"{factor.max():.2f} ({top['case']}, {top['query']}).")
+
+
+def _surrogates(both) -> str:
+    """The classical surrogate's verdicts in both runs: agreement, and how many of run B's
+    surrogate ratios lie inside run A's intervals; "" where no verdict has them in both runs."""
+    from harness.report.verdicts import AGREE, FLIP
+
+    if "surrogate agreement" not in both:
+        return ""
+    paired = both[both["surrogate agreement"] != ""]
+    if paired.empty:
+        return ""
+    counts = paired["surrogate agreement"].value_counts()
+    agree, flip = counts.get(AGREE, 0), counts.get(FLIP, 0)
+    text = (f" Against the classical surrogate, {len(paired)} verdicts in both runs: {agree} agree, {flip} flip, "
+            f"{len(paired) - agree - flip} are a tie in one run and not in the other")
+    timed = paired.dropna(subset=["surrogate_ratio A", "surrogate_ratio B"])
+    if not timed.empty:
+        inside = ((timed["surrogate_ratio B"] >= timed["surrogate_ratio_low A"])
+                  & (timed["surrogate_ratio B"] <= timed["surrogate_ratio_high A"])).sum()
+        text += f"; {inside} of run B's {len(timed)} ratios ({100 * inside / len(timed):.0f} %) inside run A's interval"
+    return text + "."
 
 
 def _sigma(frames_a: dict, frames_b: dict) -> str:
@@ -185,4 +207,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
         summary = _block(frames_a, frames_b, _sources(args.run_a, args.run_b, start), tables=False)
         replace_section(args.update_readme, COMPARE_START, COMPARE_END, summary, "compare")
     both = compare_runs(frames_a, frames_b) if "verdict" in frames_a and "verdict" in frames_b else None
-    return 1 if both is not None and not both.empty and (both["agreement"] == FLIP).any() else 0
+    if both is None or both.empty:
+        return 0
+    flips = both["agreement"] == FLIP
+    if "surrogate agreement" in both:
+        flips |= both["surrogate agreement"] == FLIP
+    return 1 if flips.any() else 0

@@ -187,20 +187,24 @@ def headline_table(frames: dict) -> pd.DataFrame | None:
 def compare_runs(frames_a: dict, frames_b: dict) -> pd.DataFrame:
     """Every verdict of run A beside run B's of the same case, PINN and query: both labels,
     ratios and intervals, and whether they agree (the same label), one is a tie (`TIE_IN_ONE`)
-    or they flip (opposite sides)."""
+    or they flip (opposite sides); where both runs have the classical surrogate's verdicts, the same
+    of those ("surrogate agreement", "" where one run has none)."""
     a, b = verdicts(frames_a), verdicts(frames_b)
     if a.empty or b.empty:
         return pd.DataFrame()
     both = a.merge(b, on=["case", "pinn", "query"], suffixes=(" A", " B"))
-    sides = {PINN_FASTER, CLASSICAL_FASTER}
+    both = both.assign(agreement=[_agreement(la, lb) for la, lb in zip(both["verdict A"], both["verdict B"])])
+    if {"surrogate verdict A", "surrogate verdict B"} <= set(both.columns):
+        both["surrogate agreement"] = [_agreement(la, lb) if isinstance(la, str) and isinstance(lb, str) else ""
+                                       for la, lb in zip(both["surrogate verdict A"], both["surrogate verdict B"])]
+    return both
 
-    def agreement(r: pd.Series) -> str:
-        la, lb = r["verdict A"], r["verdict B"]
-        if la == lb:
-            return AGREE
-        return FLIP if {la, lb} == sides else TIE_IN_ONE
 
-    return both.assign(agreement=both.apply(agreement, axis=1))
+def _agreement(label_a: str, label_b: str) -> str:
+    """`AGREE` (the same label), `FLIP` (opposite sides) or `TIE_IN_ONE`."""
+    if label_a == label_b:
+        return AGREE
+    return FLIP if {label_a, label_b} == {PINN_FASTER, CLASSICAL_FASTER} else TIE_IN_ONE
 
 
 def compare_table(frames_a: dict, frames_b: dict) -> pd.DataFrame:
