@@ -74,3 +74,15 @@ def test_the_one_step_table_is_rendered_from_the_csv_in_the_folder(tmp_path):
     assert list(table["t (s)"]) == ["0 - 0.05", "0.05 - 0.1"] and table["delta max (rad)"].iloc[1] == "0.00075"
     markdown = step_claim_markdown(suite_frames(_rows(pinn=False)), tmp_path)
     assert "one-step error" in markdown and "Largest step" not in markdown
+
+
+def test_the_results_pages_have_a_step_claim_page_linked_from_the_index(tmp_path):
+    from harness.report.pages import write_pages
+
+    results, pages = tmp_path / "results", tmp_path / "pages"
+    write_report(_rows(), results, {}, plots=False)
+    written = {path.name: path.read_text() for path in write_pages(_rows(), {}, pages, results)}
+    assert "# Results: step claim" in written["step-claim.md"]
+    assert "[Step claim](step-claim.md)" in written["index.md"]
+    bare = {path.name for path in write_pages(_rows(pinn=False), {}, pages, results)}
+    assert "step-claim.md" not in bare and not (pages / "step-claim.md").exists()
