@@ -18,6 +18,7 @@ from harness.report.ladder import ladder_rows
 from harness.report.markdown import header, scaling_labels, scaling_markdown, section_markdown, work_minutes
 from harness.report.plots import SCALING_PLOTS
 from harness.report.scaling import scaling_frame
+from harness.report.step_claim import step_claim_markdown
 from harness.report.tables import build_tables
 from solvers.atomic import atomic_write
 
@@ -42,7 +43,7 @@ def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True
         atomic_write(out_dir / "ladder.csv", steps.to_csv(index=False))
     markdown = header(meta) + work_minutes(rows) + "\n".join(section_markdown(name, own, tables)
                                                         for name, own, tables in sections)
-    markdown += scaling_markdown(frames)
+    markdown += scaling_markdown(frames) + step_claim_markdown(frames, out_dir)
     latex = "\n".join(_latex(name, Labels(own), tables) for name, own, tables in sections)
     atomic_write(out_dir / "tables.md", markdown)
     atomic_write(out_dir / "tables.tex", latex)
