@@ -56,7 +56,7 @@ class PinnSimOptions(OptionSchema):
     max_newton: PositiveInt = 20
     newton_tol: PositiveFloat = 1e-9
     newton: Newton = "dense"
-    cg_tol: PositiveFloat = 1e-10
+    cg_tol: PositiveFloat = 1e-12
     max_cg: PositiveInt = 200
     net_h: PositiveFloat = 0.05
     hidden_layers: PositiveInt = 2

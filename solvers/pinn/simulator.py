@@ -102,7 +102,7 @@ def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, k
 
 @functools.lru_cache(maxsize=8)
 def simulate_function(component: Component, h: float, max_steps: int, collocation: int, max_newton: int,
-                      newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-10, max_cg: int = 200) -> Any:
+                      newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-12, max_cg: int = 200) -> Any:
     """Jitted (theta, machines, p (n_P, n), delta0 (n,), omega0 (n,), steps) -> per P1 and step of
     the first `steps` (<= max_steps; the rest zero): interval starts (n_P, max_steps, count + 1, n,
     2), coefficients (n_P, max_steps, n, 6), Newton iterations and the last update's size

@@ -72,7 +72,10 @@ def cgls(own: Any, g: Any, Z: Any, r: Any, blocks: Any, tol: float, max_iter: in
     to its start) and |s| / (|J|_F |r + J dc|) (LSQR's test for an inconsistent system: the angle
     between the equations' residual and J's range, which rounding keeps near 1e-16, where the
     first can stall once a Newton iteration's |J^T r| is itself near rounding: the least-squares
-    residual |r| does not vanish). Stops at a measure <= tol or after max_iter iterations."""
+    residual |r| does not vanish). Stops at a measure <= tol or after max_iter iterations. A Newton
+    iterate whose start already meets the second test gets a zero update: that test, not the
+    Newton's newton_tol, sets how near the matrix-free Newton stops to the dense one's fixed point
+    (J^T r = 0), hence a tol near rounding (1e-12 by default in the adapter)."""
     inverse = jnp.linalg.inv(blocks)
     norm_j = jnp.sqrt(jnp.sum(jnp.trace(blocks, axis1=1, axis2=2)))  # |J|_F: the trace of J^T J
 
