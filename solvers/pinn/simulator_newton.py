@@ -26,7 +26,7 @@ complex y (n, s).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import jax
 import jax.numpy as jnp
@@ -36,7 +36,7 @@ __all__ = ["NEWTON", "Newton", "apply_jacobian", "apply_transpose", "cgls",
            "preconditioner_blocks"]
 
 Newton = Literal["dense", "matrix-free"]
-NEWTON: tuple[str, ...] = ("dense", "matrix-free")
+NEWTON: tuple[str, ...] = get_args(Newton)
 
 
 def apply_jacobian(own: Any, g: Any, Z: Any, dc: Any) -> Any:
