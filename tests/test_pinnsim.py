@@ -28,6 +28,15 @@ from solvers.pinn.component import (
     P,
     exact_response,
 )
+from solvers.pinn.simulator_newton import (
+    apply_jacobian,
+    apply_transpose,
+    cgls,
+    column_norms,
+    dense_update,
+    formed_jacobian,
+    preconditioner_blocks,
+)
 from systems.cases import CASES
 from systems.model import relative_angles
 from systems.reference import reference
@@ -100,6 +109,67 @@ def test_a_newton_failure_names_the_step_and_p1(trained):  # trained: the networ
     with pytest.raises(SolveError, match=r"^pinnsim: Gauss-Newton did not converge at step 1 \(t = 0 s\) for P1 = "
                                          r"0\.5 after 1 iterations: last update .*$"):
         solver.solve(np.array([0.0, 1.0]), 0.5)
+
+
+def _random_step(n: int = 5, s: int = 4) -> tuple:
+    """own, g (n, s, 4), Z (n, n), r (n, s), complex, of the sizes of a step's Newton system."""
+    rng = np.random.default_rng(1)
+
+    def draw(*shape, scale=1.0):
+        return scale * (rng.normal(size=shape) + 1j * rng.normal(size=shape))
+
+    return draw(n, s, 4), draw(n, s, 4, scale=0.3), draw(n, n, scale=0.2), draw(n, s)
+
+
+def test_the_matrix_free_jacobian_is_the_formed_one_and_its_transpose():
+    import jax
+
+    with jax.enable_x64(True):
+        own, g, Z, r = _random_step()
+        J = np.asarray(formed_jacobian(own, g, Z))
+        rng = np.random.default_rng(2)
+        dc = rng.normal(size=(5, 4))
+        Jdc = np.asarray(apply_jacobian(own, g, Z, dc))
+        np.testing.assert_allclose(np.concatenate([Jdc.real.ravel(), Jdc.imag.ravel()]), J @ dc.ravel(), atol=1e-13)
+        np.testing.assert_allclose(np.asarray(apply_transpose(own, g, Z, r)).ravel(),
+                                   J.T @ np.concatenate([r.real.ravel(), r.imag.ravel()]), atol=1e-13)
+        blocks = np.asarray(preconditioner_blocks(own, g, Z, column_norms(Z)))
+        for k in range(5):
+            np.testing.assert_allclose(blocks[k], (J.T @ J)[4 * k:4 * k + 4, 4 * k:4 * k + 4], atol=1e-13)
+        update, iterations, measure = cgls(own, g, Z, r, blocks, 1e-12, 100)
+        assert 0 < int(iterations) <= 20 and float(measure) <= 1e-12
+        np.testing.assert_allclose(np.asarray(update), np.asarray(dense_update(own, g, Z, r)), atol=1e-11)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["wscc9", "kundur4"])
+def test_the_matrix_free_newton_gives_the_dense_trajectories(trained, case):
+    dense = trained[0] if case == "wscc9" else make_solver("pinnsim", case, **SMALL)
+    free = make_solver("pinnsim", case, **SMALL, newton="matrix-free")
+    for solver in {dense, free}:
+        solver.fit()
+    # p1_max alone: the shape each fit compiled (a second shape would double the test's JIT)
+    t, P1 = np.linspace(0.0, 3.0, 31), np.array([free.case.p1_max])
+    one, other = dense.solve(t, P1), free.solve(t, P1)
+    assert free.stats["newton_max"] > 1 and free.stats["cg_max"] > free.stats["newton_max"]
+    # measured 3.8e-14 and 8.4e-14 rad, 2.4e-13 and 1.3e-13 rad/s (wscc9, kundur4); at cg_tol 1e-10
+    # they differed by 9e-12 rad (CG's stop sets where the matrix-free Newton stops: `cgls`); with
+    # J^T's conjugate dropped, CG did not converge (SolveError)
+    np.testing.assert_allclose(other.delta, one.delta, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(other.omega, one.omega, rtol=0, atol=1e-11)
+
+
+def test_a_cg_failure_names_the_step_and_p1(trained):  # trained: the network exists
+    solver = make_solver("pinnsim", "wscc9", **{**SMALL, "newton": "matrix-free", "max_cg": 1})
+    solver.fit()
+    with pytest.raises(SolveError, match=r"^pinnsim: CG did not converge at step 1 \(t = 0 s\) for P1 = 0\.5 within "
+                                         r"max_cg = 1 iterations: relative normal residual .* > cg_tol 1e-12$"):
+        solver.solve(np.array([0.0, 1.0]), 0.5)
+
+
+def test_an_unknown_newton_solve_is_refused_by_the_schema():
+    with pytest.raises(ValueError, match="newton"):
+        make_solver("pinnsim", "wscc9", newton="sparse")
 
 
 @pytest.mark.parametrize("h", [0.3, 1.0])

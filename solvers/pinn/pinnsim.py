@@ -28,6 +28,7 @@ from solvers.identification import Estimate
 from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
 from solvers.pinn.component import INPUTS, Component, Domain, train
 from solvers.pinn.simulator import impedance, query_function, simulate_function
+from solvers.pinn.simulator_newton import Newton
 from solvers.threads import configure_threads
 from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
 from systems.sparse_network import SparseNetwork
@@ -41,8 +42,11 @@ STEP_SWEEP = (0.25, 0.1, 0.05, 0.025, 0.01)  # s: the work-precision sweep of h,
 class PinnSimOptions(OptionSchema):
     """h (s): the simulator's step, in (0, H_MAX]; collocation: points t_j = h j / s of a step's
     network equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest
-    update is <= newton_tol (rad, p.u.). The component network: net_h (s) its time range, hidden
-    layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
+    update is <= newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal
+    matrix formed, O((4 n)^3) an iteration) or "matrix-free" (CGLS with products by the network's
+    impedance, preconditioned per machine, to a normal residual measure <= cg_tol within max_cg
+    iterations; `solvers.pinn.simulator_newton.cgls`). The component network: net_h (s) its time
+    range, hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
     each (angles, and speeds weighted by `rate_weight`, s) and `n_f` collocation points of the
     equation weighted by `physics_weight` (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
     component_dir: where trained networks are kept (None: train every fit)."""
@@ -51,6 +55,9 @@ class PinnSimOptions(OptionSchema):
     collocation: PositiveInt = 4
     max_newton: PositiveInt = 20
     newton_tol: PositiveFloat = 1e-9
+    newton: Newton = "dense"
+    cg_tol: PositiveFloat = 1e-12
+    max_cg: PositiveInt = 200
     net_h: PositiveFloat = 0.05
     hidden_layers: PositiveInt = 2
     width: PositiveInt = 24
@@ -177,25 +184,34 @@ class PinnSim(AbstractSolver):
                          message="; ".join(filter(None, (threads, how))))
 
     def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int]:
-        """(p, starts, coef, the last step simulated) of every P1 over ceil(t_max / h) steps; SolveError for a Newton failure or
-        a machine that leaves the trained domain, naming the step and P1. One compiled function a
-        padded count of P1 (`_bucket`) serves every number of steps up to the horizon."""
+        """(p, starts, coef, the last step simulated) of every P1 over ceil(t_max / h) steps;
+        SolveError for a CG or Newton failure or a machine that leaves the trained domain, naming
+        the step and P1. One compiled function a padded count of P1 (`_bucket`) serves every number
+        of steps up to the horizon."""
         h, options, case = self.options["h"], self.options, self.case
         steps = max(1, int(np.ceil(t_max / h - 1e-9)))
         run = simulate_function(self.component, h, max(steps, int(np.ceil(case.t_final / h - 1e-9))),
-                                options["collocation"], options["max_newton"], options["newton_tol"])
+                                options["collocation"], options["max_newton"], options["newton_tol"], options["newton"],
+                                options["cg_tol"], options["max_cg"])
         padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
         p = case.powers(padded) / self._beta
         with jax.enable_x64(True):
             p_j = jnp.asarray(p)
-            starts, coef, iterations, size, excess, column = run(self._theta, self._machines, p_j,
-                                                                 jnp.asarray(case.delta0), jnp.asarray(case.omega0),
-                                                                 steps)
+            starts, coef, iterations, size, excess, column, cg, cg_residual = run(
+                self._theta, self._machines, p_j, jnp.asarray(case.delta0), jnp.asarray(case.omega0), steps)
         size, excess = np.asarray(size)[:P1.size, :steps], np.asarray(excess)[:P1.size, :steps]
         newton = np.asarray(iterations)[:P1.size, :steps]
-        self.stats = {"steps": steps, "newton_mean": float(newton.mean()), "newton_max": int(newton.max())}
+        cg, cg_residual = np.asarray(cg)[:P1.size, :steps], np.asarray(cg_residual)[:P1.size, :steps]
+        self.stats = {"steps": steps, "newton_mean": float(newton.mean()), "newton_max": int(newton.max()),
+                      "cg_mean": float(cg.mean()), "cg_max": int(cg.max())}  # CG: a step's sum over its Newton
         if not check:
             return p_j, starts, coef, steps - 1
+        unsolved = ~(cg_residual <= options["cg_tol"])
+        if options["newton"] == "matrix-free" and unsolved.any():
+            i, k = np.argwhere(unsolved)[0]
+            raise SolveError(f"{self.name}: CG did not converge at step {k + 1} (t = {k * h:g} s) for P1 = "
+                             f"{float(P1[i])!r} within max_cg = {options['max_cg']} iterations: relative normal "
+                             f"residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
         failed = ~(size <= options["newton_tol"])
         if failed.any():
             i, k = np.argwhere(failed)[0]

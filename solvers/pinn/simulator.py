@@ -13,9 +13,11 @@ seen from the machine terminals with the machines' tie admittances in Y_bb
 (`systems.sparse_network`), is made from one SuperLU factorisation of Y_bb (n right-hand sides)
 and kept dense (n x n): the Newton matrix is dense in the machines (the coupling), and each
 machine's PINN sensitivity d delta_k(t_j) / d c_k (s x 4) is its own block (forward mode, 4
-tangents). A step of h is ceil(h / h_net) equal network intervals (the network is trained on
-[0, h_net]), the voltage polynomial re-centred at each; the state at any t inside a step comes
-from the same networks (dense output).
+tangents). The update solves the Gauss-Newton normal equations with that matrix formed, or
+matrix-free by preconditioned CGLS with products by Z (`solvers.pinn.simulator_newton`). A step
+of h is ceil(h / h_net) equal network intervals (the network is trained on [0, h_net]), the
+voltage polynomial re-centred at each; the state at any t inside a step comes from the same
+networks (dense output).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from solvers.pinn.component import Component, phi_rate
+from solvers.pinn.simulator_newton import Newton, column_norms, gauss_newton_update
 
 __all__ = ["chain", "impedance", "query_function", "simulate_function", "state_at", "substeps"]
 
@@ -99,12 +102,15 @@ def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, k
 
 @functools.lru_cache(maxsize=8)
 def simulate_function(component: Component, h: float, max_steps: int, collocation: int, max_newton: int,
-                      newton_tol: float) -> Any:
+                      newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-12, max_cg: int = 200) -> Any:
     """Jitted (theta, machines, p (n_P, n), delta0 (n,), omega0 (n,), steps) -> per P1 and step of
     the first `steps` (<= max_steps; the rest zero): interval starts (n_P, max_steps, count + 1, n,
     2), coefficients (n_P, max_steps, n, 6), Newton iterations and the last update's size
     (n_P, max_steps), and the largest excursion of the network inputs out of the domain, in units
-    of the box's half-width (<= 0 inside), with its column of `INPUTS` (n_P, max_steps) each.
+    of the box's half-width (<= 0 inside), with its column of `INPUTS` (n_P, max_steps) each, then
+    the step's CG iterations (summed over its Newton iterations) and its CG solves' largest
+    relative normal residual (n_P, max_steps) each (0 for the dense Newton). newton, cg_tol,
+    max_cg: the update's linear solve (`simulator_newton.gauss_newton_update`).
     machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n, n) complex p.u."""
     count, sub = substeps(component, h)
     nodes = h * np.arange(1, collocation + 1) / collocation
@@ -113,6 +119,7 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
 
     def one_p(theta, mach, p, delta0, omega0, steps):
         mu, kappa, w, Z = mach["mu"], mach["kappa"], mach["w"], mach["Z"]
+        norms = column_norms(Z)
 
         def machine_nodes(c4, base, mu_k, kappa_k, p_k, d0, w0):
             coef = jnp.concatenate([base[:1], c4[:2], base[1:], c4[2:]])
@@ -120,8 +127,9 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
             return jax.vmap(lambda t: state_at(component, sub, theta, coef, mu_k, kappa_k, p_k, starts, t)[0])(nodes)
 
         def linearised(c4, base, delta_start, omega_start):
-            """The residual (2 s n,) and its Jacobian (2 s n, 4 n) in the coefficients c4 (n, 4): one
-            pass through each machine's networks, its sensitivities (s, 4) by 4 forward tangents."""
+            """The residual (n, s) complex and the Jacobian's two block-diagonal factors (n, s, 4) in
+            the coefficients c4 (n, 4), own and g (`simulator_newton`): one pass through each
+            machine's networks, its sensitivities (s, 4) by 4 forward tangents."""
             def own_nodes(c, b, mu_k, kappa_k, p_k, d0, w0):
                 value, tangent = jax.linearize(lambda q: machine_nodes(q, b, mu_k, kappa_k, p_k, d0, w0), c)
                 return value, jax.vmap(tangent, out_axes=-1)(jnp.eye(4))
@@ -131,35 +139,31 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
             v = base[:, 1:] + nodes * (c4[:, 2:3] + nodes * c4[:, 3:])
             e = jnp.exp(1j * th)
             source = w[:, None] * jnp.exp(1j * delta)  # (n, s)
-            mismatch = v * e - Z @ source
-            n = c4.shape[0]
-            own = jnp.stack([1j * v * e * nodes, 1j * v * e * nodes ** 2, e * nodes, e * nodes ** 2], -1)  # (n, s, 4)
+            own = jnp.stack([1j * v * e * nodes, 1j * v * e * nodes ** 2, e * nodes, e * nodes ** 2], -1)
             # d (Z w e^{j delta})_k (t_j) / d c_l = Z_kl j w_l e^{j delta_l(t_j)} d delta_l(t_j) / d c_l
-            coupling = Z[:, None, :, None] * ((1j * source).T[None, :, :, None] * jnp.transpose(sens, (1, 0, 2))[None])
-            full = (own[:, :, None, :] * jnp.eye(n)[:, None, :, None] - coupling).reshape(n * collocation, n * 4)
-            return (jnp.concatenate([mismatch.real.ravel(), mismatch.imag.ravel()]),
-                    jnp.concatenate([full.real, full.imag]))
+            return v * e - Z @ source, own, (1j * source)[..., None] * sens
 
         def step(k, carry):
             delta_start, omega_start, guess, out = carry
             V0 = Z @ (w * jnp.exp(1j * delta_start))
             base = jnp.stack([jnp.angle(V0), jnp.abs(V0)], -1)  # (n, 2)
 
-            def newton(state):
-                c4, i, _ = state
-                r, J = linearised(c4, base, delta_start, omega_start)
-                update = jnp.linalg.solve(J.T @ J, -(J.T @ r)).reshape(c4.shape)  # Gauss-Newton
-                return c4 + update, i + 1, jnp.max(jnp.abs(update))
+            def iterate(state):
+                c4, i, _, cg, cg_residual = state
+                r, own, g = linearised(c4, base, delta_start, omega_start)
+                update, cg_i, cg_rel = gauss_newton_update(newton, own, g, Z, norms, r, cg_tol, max_cg)
+                return c4 + update, i + 1, jnp.max(jnp.abs(update)), cg + cg_i, jnp.maximum(cg_residual, cg_rel)
 
-            c4, iterations, size = jax.lax.while_loop(
-                lambda s: (s[1] < max_newton) & (s[2] > newton_tol), newton, (guess, 0, jnp.inf))
+            c4, iterations, size, cg, cg_residual = jax.lax.while_loop(
+                lambda s: (s[1] < max_newton) & (s[2] > newton_tol), iterate, (guess, 0, jnp.inf, 0, 0.0))
             coef = jnp.concatenate([base[:, :1], c4[:, :2], base[:, 1:], c4[:, 2:]], -1)  # (n, 6)
             starts, xs = jax.vmap(lambda cf, m_k, k_k, p_k, d0, w0: chain(component, count, sub, theta, cf, m_k, k_k,
                                                                            p_k, d0, w0))(coef, mu, kappa, p,
                                                                                          delta_start, omega_start)
             excess = jnp.max((jnp.abs(xs[..., 1:] - mid[1:]) / half[1:] - 1.0).reshape(-1, 8), axis=0)
             nxt = jnp.stack([c4[:, 0] + 2.0 * c4[:, 1] * h, c4[:, 1], c4[:, 2] + 2.0 * c4[:, 3] * h, c4[:, 3]], -1)
-            values = (jnp.transpose(starts, (1, 0, 2)), coef, iterations, size, jnp.max(excess), jnp.argmax(excess) + 1)
+            values = (jnp.transpose(starts, (1, 0, 2)), coef, iterations, size, jnp.max(excess), jnp.argmax(excess) + 1,
+                      cg, cg_residual)
             out = tuple(buffer.at[k].set(value) for buffer, value in zip(out, values))
             return starts[:, -1, 0], starts[:, -1, 1], nxt, out
 
@@ -167,7 +171,7 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
         first = jnp.stack([omega0, jnp.zeros_like(omega0), jnp.zeros_like(omega0), jnp.zeros_like(omega0)], -1)
         buffers = (jnp.zeros((max_steps, count + 1, n, 2)), jnp.zeros((max_steps, n, 6)),
                    jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps), jnp.full(max_steps, -1.0),
-                   jnp.zeros(max_steps, jnp.int64))
+                   jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps))
         return jax.lax.fori_loop(0, steps, step, (delta0, omega0, first, buffers))[3]
 
     return jax.jit(jax.vmap(one_p, (None, None, 0, None, None, None)))
