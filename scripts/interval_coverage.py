@@ -6,7 +6,12 @@ labels agree, flip or are a tie in one run only. One CSV row per pair and rule:
     python scripts/interval_coverage.py results results/verdicts results/verdicts-rerun \
         --out results/interval-coverage.csv
 
-compares the first folder with each of the others (and the others among themselves).
+compares the first folder with each of the others (and the others among themselves). With
+`--append` the rows of these pairs are added to the CSV's (a pair already there is replaced), so a
+new pair of runs joins the stored ones without comparing runs of different machines:
+
+    python scripts/interval_coverage.py results/verdicts-retrain results/verdicts-retrain-2 \
+        --out results/interval-coverage.csv --append
 """
 
 from __future__ import annotations
@@ -53,9 +58,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folders", type=Path, nargs="+", metavar="DIR")
     parser.add_argument("--out", type=Path, required=True, help="the CSV to write")
+    parser.add_argument("--append", action="store_true", help="add the rows to the CSV's, replacing the same pairs")
     args = parser.parse_args()
     rows = [coverage(a, b, rule) for a, b in itertools.combinations(args.folders, 2) for rule in (0.0, RUN_TO_RUN)]
     table = pd.DataFrame(rows)
+    if args.append and args.out.exists():
+        old = pd.read_csv(args.out)
+        pairs = set(zip(table["run_a"], table["run_b"]))
+        table = pd.concat([old[[pair not in pairs for pair in zip(old["run_a"], old["run_b"])]], table],
+                          ignore_index=True)
     table.to_csv(args.out, index=False)
     print(table.to_string(index=False))
 
