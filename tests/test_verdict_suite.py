@@ -232,6 +232,7 @@ def test_a_rival_whose_first_call_is_over_the_limit_is_refused_after_that_call_a
 
     class Slow:
         name = "slow query"
+        points = True  # a batch of points: not probed on a few trajectories
 
         def call(self, solver):
             def run():
@@ -245,3 +246,35 @@ def test_a_rival_whose_first_call_is_over_the_limit_is_refused_after_that_call_a
     assert rival is None and len(notes) == len(rivals.sweeps) > 0
     assert all("skipped, out of time" in note for note in notes)
     assert calls == dict.fromkeys(rivals.sweeps, 1)
+
+
+def test_a_rival_of_many_trajectories_is_probed_on_a_few_and_refused_unrun_when_far_over_the_limit(monkeypatch):
+    """A query of many trajectories is timed first on `PROBE_P1` of them; a point whose estimate
+    is over `PROBE_MARGIN` x `max_query_s` is refused without its full call (case118's 10,000
+    trajectories: minutes a call of the trapezoid), one under it is called as before."""
+    from harness.suites._matching import PROBE_MARGIN, PROBE_P1
+    from harness.suites._queries import Query
+
+    limit = 0.01
+    rivals = Rivals(CASE, replace(SETTINGS, max_query_s=limit))
+    monkeypatch.setattr(rivals, "errors", lambda candidate, query: (0.0, 0.0))
+    sizes: list[int] = []
+
+    class Linear:  # a solver whose call takes `each` seconds a trajectory
+        def __init__(self, each: float) -> None:
+            self.each = each
+
+        def solve(self, t, P1):
+            sizes.append(P1.size)
+            time.sleep(self.each * P1.size)
+
+    (family, points), *_ = rivals.sweeps.items()
+    many = Query("trajectories", "many", np.linspace(0.0, 1.0, 3), np.linspace(0.1, 0.2, 100 * PROBE_P1))
+    points[0]._solver = Linear(PROBE_MARGIN * limit / PROBE_P1)  # the estimate: 100 x 3 x limit
+    assert rivals.warm_call_s(points[0], many) > PROBE_MARGIN * limit
+    assert sizes == [PROBE_P1, PROBE_P1]  # the probe's untimed and timed calls, never the query's own
+    sizes.clear()
+    few = Query("trajectories", "few", many.t, many.P1[:2 * PROBE_P1])
+    points[1]._solver = Linear(1e-5)
+    rivals.warm_call_s(points[1], few)
+    assert sizes[:2] == [PROBE_P1, PROBE_P1] and set(sizes[2:]) == {2 * PROBE_P1} and len(sizes) > 2
