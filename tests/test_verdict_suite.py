@@ -268,7 +268,7 @@ def test_a_rival_of_many_trajectories_is_probed_on_a_few_and_refused_unrun_when_
             sizes.append(P1.size)
             time.sleep(self.each * P1.size)
 
-    (family, points), *_ = rivals.sweeps.items()
+    points = next(iter(rivals.sweeps.values()))
     many = Query("trajectories", "many", np.linspace(0.0, 1.0, 3), np.linspace(0.1, 0.2, 100 * PROBE_P1))
     points[0]._solver = Linear(PROBE_MARGIN * limit / PROBE_P1)  # the estimate: 100 x 3 x limit
     assert rivals.warm_call_s(points[0], many) > PROBE_MARGIN * limit
