@@ -268,11 +268,16 @@ def test_a_rival_of_many_trajectories_is_probed_on_a_few_and_refused_unrun_when_
             sizes.append(P1.size)
             time.sleep(self.each * P1.size)
 
-    points = next(iter(rivals.sweeps.values()))
+    family, points = next(iter(rivals.sweeps.items()))
     many = Query("trajectories", "many", np.linspace(0.0, 1.0, 3), np.linspace(0.1, 0.2, 100 * PROBE_P1))
     points[0]._solver = Linear(PROBE_MARGIN * limit / PROBE_P1)  # the estimate: 100 x 3 x limit
     assert rivals.warm_call_s(points[0], many) > PROBE_MARGIN * limit
     assert sizes == [PROBE_P1, PROBE_P1]  # the probe's untimed and timed calls, never the query's own
+    monkeypatch.setattr(rivals, "sweeps", {family: points})
+    rival, notes = rivals.best(many, 1.0, 1.0)  # the row's note says the seconds are an estimate
+    expected = (f"{points[0].label}: skipped, out of time ({rivals.warm_call_s(points[0], many):.3g} s a call, "
+                f"estimated from {PROBE_P1} of its trajectories, over {limit:g} s)")
+    assert rival is None and notes == [expected]
     sizes.clear()
     few = Query("trajectories", "few", many.t, many.P1[:2 * PROBE_P1])
     points[1]._solver = Linear(1e-5)

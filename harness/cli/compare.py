@@ -115,7 +115,7 @@ def _block(frames_a: dict, frames_b: dict, sources: str, tables: bool = True) ->
     import pandas as pd
 
     from harness.report.labels import Labels
-    from harness.report.verdicts import AGREE, FLIP, compare_runs, compare_table
+    from harness.report.verdicts import compare_runs, compare_table
 
     frames = {suite: pd.concat([f[suite] for f in (frames_a, frames_b) if suite in f])
               for suite in {**frames_a, **frames_b}}
@@ -131,9 +131,7 @@ def _block(frames_a: dict, frames_b: dict, sources: str, tables: bool = True) ->
         return head + f"No verdicts in both runs (run {'B' if 'verdict' in frames_a else 'A'} has no verdict rows).\n"
     both = compare_runs(frames_a, frames_b)
     table = compare_table(frames_a, frames_b)
-    counts = both["agreement"].value_counts() if not both.empty else pd.Series(dtype=int)
-    summary = (f"{len(both)} verdicts in both runs: {counts.get(AGREE, 0)} agree, {counts.get(FLIP, 0)} flip, "
-               f"{len(both) - counts.get(AGREE, 0) - counts.get(FLIP, 0)} are a tie in one run and not in the other."
+    summary = (_agreement(both["agreement"] if not both.empty else pd.Series(dtype=str)) + "."
                + _spread(both) + _sigma(frames_a, frames_b) + _surrogates(both))
     if not tables:
         return head + f"{summary} Every query and verdict of both: `swingbench compare` of the two folders.\n"
@@ -152,7 +150,7 @@ def _spread(both) -> str:
     timed = both.dropna(subset=["ratio A", "ratio B"])
     if timed.empty:
         return ""
-    inside = ((timed["ratio B"] >= timed["ratio_low A"]) & (timed["ratio B"] <= timed["ratio_high A"])).sum()
+    inside = _inside(timed)
     factor = (timed["ratio A"] / timed["ratio B"]).map(lambda x: max(x, 1 / x))
     top = timed.loc[factor.idxmax()]
     return (f" Of the {len(timed)} ratios of run B, {inside} ({100 * inside / len(timed):.0f} %) lie inside run A's 95 % "
@@ -163,23 +161,34 @@ def _spread(both) -> str:
 def _surrogates(both) -> str:
     """The classical surrogate's verdicts in both runs: agreement, and how many of run B's
     surrogate ratios lie inside run A's intervals; "" where no verdict has them in both runs."""
-    from harness.report.verdicts import AGREE, FLIP
-
     if "surrogate agreement" not in both:
         return ""
     paired = both[both["surrogate agreement"] != ""]
     if paired.empty:
         return ""
-    counts = paired["surrogate agreement"].value_counts()
-    agree, flip = counts.get(AGREE, 0), counts.get(FLIP, 0)
-    text = (f" Against the classical surrogate, {len(paired)} verdicts in both runs: {agree} agree, {flip} flip, "
-            f"{len(paired) - agree - flip} are a tie in one run and not in the other")
+    text = " Against the classical surrogate, " + _agreement(paired["surrogate agreement"])
     timed = paired.dropna(subset=["surrogate_ratio A", "surrogate_ratio B"])
     if not timed.empty:
-        inside = ((timed["surrogate_ratio B"] >= timed["surrogate_ratio_low A"])
-                  & (timed["surrogate_ratio B"] <= timed["surrogate_ratio_high A"])).sum()
+        inside = _inside(timed, "surrogate_")
         text += f"; {inside} of run B's {len(timed)} ratios ({100 * inside / len(timed):.0f} %) inside run A's interval"
     return text + "."
+
+
+def _agreement(agreement) -> str:
+    """"N verdicts in both runs: a agree, f flip, t are a tie in one run and not in the other" of
+    the column `agreement` of `compare_runs`."""
+    from harness.report.verdicts import AGREE, FLIP
+
+    counts = agreement.value_counts()
+    agree, flip = counts.get(AGREE, 0), counts.get(FLIP, 0)
+    return (f"{len(agreement)} verdicts in both runs: {agree} agree, {flip} flip, "
+            f"{len(agreement) - agree - flip} are a tie in one run and not in the other")
+
+
+def _inside(timed, prefix: str = "") -> int:
+    """How many of run B's ratios (`{prefix}ratio B`) lie inside run A's interval."""
+    ratio, low, high = (timed[f"{prefix}{key}"] for key in ("ratio B", "ratio_low A", "ratio_high A"))
+    return int(((ratio >= low) & (ratio <= high)).sum())
 
 
 def _sigma(frames_a: dict, frames_b: dict) -> str:

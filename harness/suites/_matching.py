@@ -157,6 +157,7 @@ class Rivals:
             self.sweeps[family] = [Candidate(family, p, case, settings.threads) for p in points]
         self._errors: dict[tuple, tuple[float, float]] = {}
         self._seconds: dict[tuple, float] = {}
+        self._estimated: set[tuple] = set()  # keys of `_seconds` that are a probe's estimate, not a call
 
     def errors(self, candidate: Candidate, query: Query) -> tuple[float, float]:
         """(angles, speeds) of `candidate` on `query` (`query_errors`), measured once; NaN where
@@ -190,6 +191,7 @@ class Rivals:
                 estimate = self._estimate_s(candidate, query)
                 if estimate > PROBE_MARGIN * limit:
                     self._seconds[key] = estimate
+                    self._estimated.add(key)
                 else:
                     self._seconds[key] = warm_call_s(query.call(candidate.solver()), slow_s=SLOW_S, limit_s=limit)
         return self._seconds[key]
@@ -217,7 +219,9 @@ class Rivals:
                 continue
             seconds = self.warm_call_s(match, query)
             if seconds > self.settings.max_query_s:
-                notes.append(f"{match.label}: skipped, out of time ({seconds:.3g} s a call, over "
+                how = (f", estimated from {PROBE_P1} of its trajectories"
+                       if (match.label, query.name) in self._estimated else "")
+                notes.append(f"{match.label}: skipped, out of time ({seconds:.3g} s a call{how}, over "
                              f"{self.settings.max_query_s:g} s)")
                 continue
             picks.append((seconds, match))
