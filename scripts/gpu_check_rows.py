@@ -4,6 +4,7 @@ and the check's one-line summary from the runs' rows.
   python scripts/gpu_check_rows.py probe --want gpu        # JSON on stdout; exit 3 if JAX has no such backend
   python scripts/gpu_check_rows.py stamp DIR PROBE.json    # DIR/metadata.json gets "accelerator": PROBE
   python scripts/gpu_check_rows.py summary DIR ... [--seconds S]
+  python scripts/gpu_check_rows.py table GPU_DIR ... --cpu CPU_DIR ... [--update PAGE.md]
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+
+GPU_START, GPU_END = "<!-- swingbench:gpu:start -->", "<!-- swingbench:gpu:end -->"
 
 
 def probe(want: str) -> dict:
@@ -64,45 +67,59 @@ def _g(value: float | None, unit: str = "") -> str:
     return "n/a" if value is None or not math.isfinite(value) else f"{value:.3g}{unit}"
 
 
-def _fit(rows: list[dict]) -> str:
-    fits = [r for r in rows if r["suite"] == "fit"]
-    if not fits:
-        return "no fit row"
-    fit = fits[0]
-    if not str(fit.get("status", "ok")).startswith("ok"):
-        return f"fit {fit.get('status')}"
-    return f"fit {_g(fit.get('fit_s'), ' s')} ({fit.get('iterations', '?')} iterations)"
-
-
 def _first(rows: list[dict], suite: str, **match) -> dict | None:
     return next((r for r in rows if r["suite"] == suite and all(r.get(k) == v for k, v in match.items())), None)
 
 
-def _run_summary(folder: Path) -> str:
-    """A run's part of the summary: its adapter, config and case, the fit's seconds and iterations,
-    then for its first variant (the adapter's own query path) the COI rel. L2 of the angles and the
-    median query times: the scaling grid (4 P1 x 101 times) and single point, or the accuracy suite's
-    100 x 201 grid, the latency suite's grid and single point at t1 = 10 s; and the rows not ok."""
-    from harness.store import RowStore
+def measures(rows: list[dict]) -> dict:
+    """One variant's figures from its rows: the fit's status, seconds and iterations; the COI rel.
+    L2 of the angles (the scaling suite's, or the accuracy suite's against the reference) and the
+    median query times: the scaling suite's grid (4 P1 x 101 times) and single point, or the latency
+    suite's first grid and its single point at t1 = 10 s, each with its query's name. Absent: None."""
     from harness.suites.accuracy import COI_DELTA
 
-    rows = RowStore(folder, create=False).read().rows if (folder / "rows.jsonl").is_file() else []
-    if not rows:
-        return f"{folder.name}: no rows"
-    first = rows[0]
-    own = [r for r in rows if r.get("variant") == first.get("variant")]
-    text = [f"{first.get('solver')} [{first.get('config')}] on {first.get('case')}: {_fit(own)}"]
-    if (row := _first(own, "scaling")) is not None and "rel_l2" in row:
-        text.append(f"rel. L2 {_g(row['rel_l2'])}, grid {_g(1e3 * row['grid_median_s'], ' ms')}, "
-                    f"point {_g(1e3 * row['point_median_s'], ' ms')}")
-    if (row := _first(own, "accuracy", quantity=COI_DELTA, against="reference")) is not None:
-        text.append(f"rel. L2 {_g(row['rel_l2'])}")
-    for kind, label in (("grid", "grid"), ("single point", "point")):
-        found = [r for r in own if r["suite"] == "latency" and r.get("kind") == kind and "median_s" in r]
+    fit = _first(rows, "fit") or {}
+    out = {"fit_status": fit.get("status", "no fit row"), "fit_s": fit.get("fit_s"),
+           "iterations": fit.get("iterations"), "threads": fit.get("threads"), "rel_l2": None,
+           "grid_s": None, "grid_query": None, "point_s": None, "point_query": None}
+    if (row := _first(rows, "scaling")) is not None and "rel_l2" in row:
+        out.update(rel_l2=row["rel_l2"], grid_s=row.get("grid_median_s"), point_s=row.get("point_median_s"),
+                   grid_query=f"grid {row.get('n_trajectories')}x{row.get('n_times')}",
+                   point_query="single point")
+    if (row := _first(rows, "accuracy", quantity=COI_DELTA, against="reference")) is not None:
+        out["rel_l2"] = row["rel_l2"]
+    for kind, key in (("grid", "grid"), ("single point", "point")):
+        found = [r for r in rows if r["suite"] == "latency" and r.get("kind") == kind and "median_s" in r]
         if kind == "single point":
             found = [r for r in found if r.get("t1_s") == 10.0]
         if found:
-            text.append(f"{label} {_g(1e3 * found[0]['median_s'], ' ms')} ({found[0].get('query')})")
+            out[f"{key}_s"], out[f"{key}_query"] = found[0]["median_s"], found[0].get("query")
+    return out
+
+
+def _read(folder: Path) -> list[dict]:
+    from harness.store import RowStore
+
+    return RowStore(folder, create=False).read().rows if (folder / "rows.jsonl").is_file() else []
+
+
+def _run_summary(folder: Path) -> str:
+    """A run's part of the summary: its adapter, config and case, the fit's seconds and iterations,
+    then for its first variant (the adapter's own query path) the figures of `measures`, and the
+    rows not ok."""
+    rows = _read(folder)
+    if not rows:
+        return f"{folder.name}: no rows"
+    first = rows[0]
+    m = measures([r for r in rows if r.get("variant") == first.get("variant")])
+    fit = (f"fit {_g(m['fit_s'], ' s')} ({m['iterations'] if m['iterations'] is not None else '?'} iterations)"
+           if str(m["fit_status"]).startswith("ok") else f"fit {m['fit_status']}")
+    text = [f"{first.get('solver')} [{first.get('config')}] on {first.get('case')}: {fit}"]
+    if m["rel_l2"] is not None:
+        text.append(f"rel. L2 {_g(m['rel_l2'])}")
+    for key in ("grid", "point"):
+        if m[f"{key}_s"] is not None:
+            text.append(f"{key} {_g(1e3 * m[f'{key}_s'], ' ms')} ({m[f'{key}_query']})")
     bad = [r for r in rows if not str(r.get("status", "ok")).startswith("ok")]
     if bad:
         text.append(f"{len(bad)} rows not ok ({bad[0].get('status')})")
@@ -123,6 +140,45 @@ def summary(folders: list[Path], seconds: float | None) -> str:
     return f"gpu_check on {device}{took}: " + "; ".join(_run_summary(folder) for folder in folders)
 
 
+def _where(folder: Path) -> str:
+    """Where a run computed: the accelerator's kind where its metadata records one, else the CPU's
+    model; with the threads it was given."""
+    meta = json.loads((folder / "metadata.json").read_text(encoding="utf-8"))
+    acc = meta.get("accelerator")
+    device = f"{acc['device_kind']} (JAX {acc['jax']})" if acc else f"CPU: {meta.get('cpu', '?')} (JAX {meta.get('version_jax', '?')})"
+    return f"{device}, {meta.get('threads', '?')} threads, at {meta.get('commit', '?')}"
+
+
+def table(gpu_folders: list[Path], cpu_folders: list[Path]) -> str:
+    """A Markdown table: for each GPU run (its seed 0, each query path) the rows of the same adapter,
+    config and case in the CPU runs beside it, with `measures`' figures and the fit's seconds per
+    optimizer iteration (snapshots and basis included where the fit makes them)."""
+    head = ("| case | PINN | query path | where | variant | fit (s) | iterations | s / iteration "
+            "| COI rel. L2 | grid (ms) | single point (ms) |\n" + "|---" * 11 + "|\n")
+    lines = []
+    cpu_rows = {folder: _read(folder) for folder in cpu_folders}
+    for gpu in gpu_folders:
+        rows = [r for r in _read(gpu) if r.get("seed", 0) == 0]
+        if not rows:
+            continue
+        key = {k: rows[0].get(k) for k in ("solver", "config", "case")}
+        paths = list(dict.fromkeys("query=numba" in str(r.get("variant")) for r in rows))
+        for numba in paths:
+            for folder, source in [(gpu, rows)] + [(f, cpu_rows[f]) for f in cpu_folders]:
+                mine = [r for r in source if r.get("seed", 0) == 0 and all(r.get(k) == v for k, v in key.items())
+                        and ("query=numba" in str(r.get("variant"))) == numba]
+                for variant in dict.fromkeys(r.get("variant") for r in mine):
+                    m = measures([r for r in mine if r.get("variant") == variant])
+                    per = (m["fit_s"] / m["iterations"] if m["fit_s"] is not None and m["iterations"] else None)
+                    shown = ",".join(v for v in str(variant).split(",") if v not in ("query=numba", "device=gpu"))
+                    lines.append(
+                        f"| {key['case']} | {key['solver']} `{key['config']}` | {'numba' if numba else 'own'} "
+                        f"| {_where(folder)} | `{shown}` | {_g(m['fit_s'])} | {m['iterations'] or 'n/a'} | {_g(per)} "
+                        f"| {_g(m['rel_l2'])} | {_g(None if m['grid_s'] is None else 1e3 * m['grid_s'])} "
+                        f"| {_g(None if m['point_s'] is None else 1e3 * m['point_s'])} |")
+    return head + "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="gpu_check_rows.py", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -135,11 +191,23 @@ def main(argv: list[str] | None = None) -> int:
     m = sub.add_parser("summary")
     m.add_argument("folders", type=Path, nargs="+")
     m.add_argument("--seconds", type=float, default=None)
+    t = sub.add_parser("table", help="GPU rows beside the CPU rows of the same PINN")
+    t.add_argument("folders", type=Path, nargs="+", help="the GPU runs (results/gpu/<run>)")
+    t.add_argument("--cpu", type=Path, nargs="+", required=True, help="CPU runs with the same adapter, config, case")
+    t.add_argument("--update", type=Path, default=None,
+                   help=f"also replace the section of this page between {GPU_START} and {GPU_END}")
     args = parser.parse_args(argv)
     if args.command == "probe":
         print(json.dumps(probe(args.want)))
     elif args.command == "stamp":
         stamp(args.folder, args.probe_file)
+    elif args.command == "table":
+        block = table(args.folders, args.cpu)
+        print(block, end="")
+        if args.update is not None:
+            from harness.cli.readme import replace_section
+
+            replace_section(args.update, GPU_START, GPU_END, "\n" + block, "gpu_check_rows.py table")
     else:
         print(summary(args.folders, args.seconds))
     return 0

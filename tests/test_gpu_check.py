@@ -55,3 +55,21 @@ def test_the_cpu_mode_writes_no_rows_into_the_gpu_folder():
     done = subprocess.run(["bash", str(SCRIPT), "--cpu", "--dry-run"], cwd=ROOT, capture_output=True, text=True, check=False,
                           env={**os.environ, "GPU_CHECK_OUT": "results/gpu"})
     assert done.returncode == 2 and "results/gpu/" in done.stderr
+
+
+def test_the_docs_gpu_table_is_the_one_the_rows_give():
+    """docs/scaling.md's table of the GPU check is what `gpu_check_rows.py table` writes from the
+    committed rows (the command is on the page)."""
+    import importlib.util
+    import re
+
+    spec = importlib.util.spec_from_file_location("gpu_check_rows", ROOT / "scripts" / "gpu_check_rows.py")
+    rows = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rows)
+    page = (ROOT / "docs" / "scaling.md").read_text(encoding="utf-8")
+    block = page.split(rows.GPU_START, 1)[1].split(rows.GPU_END, 1)[0]
+    command = re.search(r"`python scripts/gpu_check_rows.py table (.*?) --update", page, flags=re.DOTALL).group(1)
+    gpu, cpu = command.split(" --cpu ")
+    expected = rows.table([ROOT / f for f in gpu.split()], [ROOT / f for f in cpu.split()])
+    assert block == "\n" + expected
+    assert "NVIDIA H200" in block
