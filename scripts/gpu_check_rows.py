@@ -156,15 +156,16 @@ def table(gpu_folders: list[Path], cpu_folders: list[Path]) -> str:
     head = ("| case | PINN | query path | where | variant | fit (s) | iterations | s / iteration "
             "| COI rel. L2 | grid (ms) | single point (ms) |\n" + "|---" * 11 + "|\n")
     lines = []
-    cpu_rows = {folder: _read(folder) for folder in cpu_folders}
-    for gpu in gpu_folders:
-        rows = [r for r in _read(gpu) if r.get("seed", 0) == 0]
-        if not rows:
-            continue
-        key = {k: rows[0].get(k) for k in ("solver", "config", "case")}
-        paths = list(dict.fromkeys("query=numba" in str(r.get("variant")) for r in rows))
+    runs = [(folder, [r for r in _read(folder) if r.get("seed", 0) == 0]) for folder in gpu_folders]
+    runs = [(folder, rows) for folder, rows in runs if rows]
+    cpu_runs = [(folder, _read(folder)) for folder in cpu_folders]
+    keys = list(dict.fromkeys(tuple(rows[0].get(k) for k in ("solver", "config", "case")) for _, rows in runs))
+    for solver, config, case in keys:
+        key = {"solver": solver, "config": config, "case": case}
+        gpu_runs = [(f, rows) for f, rows in runs if all(rows[0].get(k) == v for k, v in key.items())]
+        paths = list(dict.fromkeys("query=numba" in str(r.get("variant")) for _, rows in gpu_runs for r in rows))
         for numba in paths:
-            for folder, source in [(gpu, rows)] + [(f, cpu_rows[f]) for f in cpu_folders]:
+            for folder, source in gpu_runs + cpu_runs:
                 mine = [r for r in source if r.get("seed", 0) == 0 and all(r.get(k) == v for k, v in key.items())
                         and ("query=numba" in str(r.get("variant"))) == numba]
                 for variant in dict.fromkeys(r.get("variant") for r in mine):
@@ -172,7 +173,7 @@ def table(gpu_folders: list[Path], cpu_folders: list[Path]) -> str:
                     per = (m["fit_s"] / m["iterations"] if m["fit_s"] is not None and m["iterations"] else None)
                     shown = ",".join(v for v in str(variant).split(",") if v not in ("query=numba", "device=gpu"))
                     lines.append(
-                        f"| {key['case']} | {key['solver']} `{key['config']}` | {'numba' if numba else 'own'} "
+                        f"| {case} | {solver} `{config}` | {'numba' if numba else 'own'} "
                         f"| {_where(folder)} | `{shown}` | {_g(m['fit_s'])} | {m['iterations'] or 'n/a'} | {_g(per)} "
                         f"| {_g(m['rel_l2'])} | {_g(None if m['grid_s'] is None else 1e3 * m['grid_s'])} "
                         f"| {_g(None if m['point_s'] is None else 1e3 * m['point_s'])} |")
