@@ -230,14 +230,20 @@ def verdict_plot(frames: dict, names: Labels):
     """The headline verdicts as a heat map: log10 of the ratio rival / PINN (worst seed; blue:
     the PINN faster, red: classical), case and PINN by row, query by column, each cell's label and
     ratio written in it; ties hatched under their text; a loss without a ratio (the PINN over the
-    accuracy gate) drawn as the strongest loss."""
+    accuracy gate) drawn as the strongest loss. Where the run has the classical surrogate's verdicts,
+    each case and PINN has a second row: the same against the surrogate without a network."""
     v = verdicts(frames)
     v = v[headline(v)] if not v.empty else v
     if v.empty:
         return None
-    rows = list(dict.fromkeys(zip(v["case"], v["pinn"])))
+    v = v.assign(against="ODE solver")
+    if "surrogate verdict" in v:
+        s = v[v["surrogate verdict"].map(lambda x: isinstance(x, str))]
+        v = pd.concat([v, s.assign(verdict=s["surrogate verdict"], ratio=s["surrogate_ratio"], against="surrogate")])
+    rows = sorted(dict.fromkeys(zip(v["case"], v["pinn"], v["against"])),
+                  key=lambda row: (list(dict.fromkeys(v["case"])).index(row[0]), row[1], row[2]))
     cols = list(dict.fromkeys(v["query"]))
-    at = [(rows.index((r["case"], r["pinn"])), cols.index(r["query"])) for _, r in v.iterrows()]
+    at = [(rows.index((r["case"], r["pinn"], r["against"])), cols.index(r["query"])) for _, r in v.iterrows()]
     grid = np.full((len(rows), len(cols)), np.nan)
     for (i, j), ratio in zip(at, v["ratio"]):
         grid[i, j] = np.log10(ratio) if ratio > 0 else np.nan
@@ -257,7 +263,8 @@ def verdict_plot(frames: dict, names: Labels):
         if tie:
             ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="///", lw=0, zorder=2))
     ax.set_xticks(range(len(cols)), [c.replace(", one call", "") for c in cols], rotation=20, ha="right", fontsize=8)
-    ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}" for case, pinn in rows], fontsize=8)
+    ax.set_yticks(range(len(rows)), [f"{case}: {names(pinn)}\nagainst the {against}" for case, pinn, against in rows],
+                  fontsize=8)
     fig.colorbar(image, ax=ax, label="log10(rival time / PINN time)")
     title(ax, v["case"], "verdicts at matched accuracy", "worst seed; hatched: tie")
     return fig
