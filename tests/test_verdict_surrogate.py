@@ -91,3 +91,24 @@ def test_a_case_no_surrogate_is_made_for_is_not_applicable_with_the_reason():
         assert "pod-spline default: not made for network cases of clearing time (t_c)" in columns["surrogate_note"]
     table = verdict_table({"verdict": pd.DataFrame([{**_rows(False)[0], **columns}])})
     assert table.iloc[0]["surrogate verdict"].startswith(NOT_APPLICABLE)
+
+
+def test_the_heat_map_has_a_row_against_the_surrogate_only_where_the_rows_carry_it():
+    import matplotlib.pyplot as plt
+
+    from harness.report.plots import verdict_plot
+
+    def rows_of(frames: dict) -> tuple[list[str], list[str]]:
+        fig = verdict_plot(frames, lambda name: name)
+        labels = [t.get_text() for t in fig.axes[0].get_yticklabels()]
+        cells = sorted(t.get_text() for t in fig.axes[0].texts)
+        plt.close(fig)
+        return labels, cells
+
+    old_labels, old_cells = rows_of(_frames(False))
+    new_labels, new_cells = rows_of(_frames(True))
+    assert [label.split("\n")[1] for label in old_labels] == ["against the ODE solver"]
+    assert [label.split("\n")[1] for label in new_labels] == ["against the ODE solver", "against the surrogate"]
+    # the solver's cells as before, and the surrogate's beside them: the grid's worst seed with its
+    # ratio; the point's label over seeds alone, its worst seed having no surrogate as accurate
+    assert sorted(new_cells) == sorted([*old_cells, f"3x\n{PINN_FASTER}", TIE])
