@@ -80,7 +80,7 @@ def measures(rows: list[dict]) -> dict:
 
     fit = _first(rows, "fit") or {}
     out = {"fit_status": fit.get("status", "no fit row"), "fit_s": fit.get("fit_s"),
-           "iterations": fit.get("iterations"), "threads": fit.get("threads"), "rel_l2": None,
+           "iterations": fit.get("iterations"), "rel_l2": None,
            "grid_s": None, "grid_query": None, "point_s": None, "point_query": None}
     if (row := _first(rows, "scaling")) is not None and "rel_l2" in row:
         out.update(rel_l2=row["rel_l2"], grid_s=row.get("grid_median_s"), point_s=row.get("point_median_s"),

@@ -240,8 +240,9 @@ def verdict_plot(frames: dict, names: Labels):
     if "surrogate verdict" in v:
         s = v[v["surrogate verdict"].map(lambda x: isinstance(x, str))]
         v = pd.concat([v, s.assign(verdict=s["surrogate verdict"], ratio=s["surrogate_ratio"], against="surrogate")])
-    rows = sorted(dict.fromkeys(zip(v["case"], v["pinn"], v["against"])),
-                  key=lambda row: (list(dict.fromkeys(v["case"])).index(row[0]), row[1], row[2]))
+    present = set(zip(v["case"], v["pinn"], v["against"]))
+    rows = [(case, pinn, against) for case, pinn in dict.fromkeys(zip(v["case"], v["pinn"]))
+            for against in ("ODE solver", "surrogate") if (case, pinn, against) in present]
     cols = list(dict.fromkeys(v["query"]))
     at = [(rows.index((r["case"], r["pinn"], r["against"])), cols.index(r["query"])) for _, r in v.iterrows()]
     grid = np.full((len(rows), len(cols)), np.nan)
