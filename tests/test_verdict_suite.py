@@ -283,3 +283,42 @@ def test_a_rival_of_many_trajectories_is_probed_on_a_few_and_refused_unrun_when_
     points[1]._solver = Linear(1e-5)
     rivals.warm_call_s(points[1], few)
     assert sizes[:2] == [PROBE_P1, PROBE_P1] and set(sizes[2:]) == {2 * PROBE_P1} and len(sizes) > 2
+
+
+def test_a_rival_of_points_over_many_p1_is_probed_on_the_points_of_a_few_p1(monkeypatch):
+    """A batch of points over more than `PROBE_P1` distinct P1 is probed on the points of its first
+    `PROBE_P1` values (a solver integrates one trajectory per value) and refused unrun when the
+    estimate is over `PROBE_MARGIN` x `max_query_s`; one over fewer values is called as it is."""
+    from harness.suites._matching import PROBE_MARGIN, PROBE_P1
+    from harness.suites._queries import Query
+
+    limit = 0.01
+    rivals = Rivals(CASE, replace(SETTINGS, max_query_s=limit))
+    monkeypatch.setattr(rivals, "errors", lambda candidate, query: (0.0, 0.0))
+    distinct: list[int] = []
+
+    class PerTrajectory:  # a solver whose call takes `each` seconds a distinct P1
+        def __init__(self, each: float) -> None:
+            self.each = each
+
+        def solve_points(self, t, P1):
+            distinct.append(np.unique(P1).size)
+            time.sleep(self.each * np.unique(P1).size)
+
+    family, points = next(iter(rivals.sweeps.items()))
+    rng = np.random.default_rng(0)
+    values = np.linspace(0.1, 0.2, 100 * PROBE_P1)
+    P1 = np.concatenate([values, rng.choice(values, 2000)])  # every value, then repeats
+    many = Query("points batch", "many", rng.uniform(0.1, 1.0, P1.size), P1)
+    points[0]._solver = PerTrajectory(PROBE_MARGIN * limit / PROBE_P1)  # the estimate: 100 x 3 x limit
+    assert rivals.warm_call_s(points[0], many) > PROBE_MARGIN * limit
+    assert distinct == [PROBE_P1, PROBE_P1]  # the probe's untimed and timed calls only
+    monkeypatch.setattr(rivals, "sweeps", {family: points})
+    rival, notes = rivals.best(many, 1.0, 1.0)
+    assert rival is None and notes[0].endswith(f"estimated from the points of {PROBE_P1} of its P1 values, "
+                                               f"over {limit:g} s)")
+    distinct.clear()
+    few = Query("points batch", "few", np.linspace(0.1, 1.0, 50), np.repeat(values[:PROBE_P1], 5))
+    points[1]._solver = PerTrajectory(1e-5)
+    rivals.warm_call_s(points[1], few)
+    assert set(distinct) == {PROBE_P1} and len(distinct) > 1  # the query's own calls, no probe

@@ -199,8 +199,18 @@ class Rivals:
     def _estimate_s(self, candidate: Candidate, query: Query) -> float:
         """Seconds of `candidate`'s call on a query of many trajectories estimated from its first
         `PROBE_P1` (one warm call, scaled by the count): a fine fixed step on 54 machines takes
-        minutes for 10,000 trajectories. 0 for any other query (not probed)."""
-        if query.points or query.P1.size <= PROBE_P1:
+        minutes for 10,000 trajectories. A batch of points over more than `PROBE_P1` distinct P1 is
+        probed on the points of its first `PROBE_P1` distinct values and scaled by the number of
+        distinct values, as a solver integrates one trajectory per value (10,000 scattered points are
+        10,000 trajectories). 0 for any other query (not probed)."""
+        if query.points:
+            _, at = np.unique(query.P1, return_index=True)
+            if at.size <= PROBE_P1:
+                return 0.0
+            keep = np.isin(query.P1, query.P1[np.sort(at)[:PROBE_P1]])
+            probe = Query(query.kind, query.name, query.t[keep], query.P1[keep])
+            return warm_call_s(probe.call(candidate.solver()), calls=1) * at.size / PROBE_P1
+        if query.P1.size <= PROBE_P1:
             return 0.0
         probe = Query(query.kind, query.name, query.t, query.P1[:PROBE_P1])
         return warm_call_s(probe.call(candidate.solver()), calls=1) * query.P1.size / PROBE_P1
@@ -219,7 +229,8 @@ class Rivals:
                 continue
             seconds = self.warm_call_s(match, query)
             if seconds > self.settings.max_query_s:
-                how = (f", estimated from {PROBE_P1} of its trajectories"
+                of = f"the points of {PROBE_P1} of its P1 values" if query.points else f"{PROBE_P1} of its trajectories"
+                how = (f", estimated from {of}"
                        if (match.label, query.name) in self._estimated else "")
                 notes.append(f"{match.label}: skipped, out of time ({seconds:.3g} s a call{how}, over "
                              f"{self.settings.max_query_s:g} s)")
