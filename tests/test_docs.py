@@ -8,14 +8,15 @@ import re
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from harness.cli import main
 from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
-from harness.cli.readme import README_END, README_START
+from harness.cli.readme import AT_SCALE_END, AT_SCALE_START, README_END, README_START
 from harness.report.files import write_report
 from harness.report.labels import Labels, split_items
 from harness.report.markdown import LADDER_HEADING
-from harness.report.pages import GENERATED, readme_block, write_pages
+from harness.report.pages import GENERATED, at_scale_block, readme_block, write_pages
 from harness.store import RowStore
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -60,6 +61,42 @@ def test_the_readme_comparison_of_two_runs_is_what_compare_writes():
     block = readme.split(COMPARE_START, 1)[1].split(COMPARE_END, 1)[0]
     run_a, run_b = (ROOT / source for source in re.findall(r"`([^`]+)/rows\.jsonl`", block))
     assert block == compare_block(run_a, run_b, ROOT, tables=False)
+
+
+def test_the_readme_at_scale_verdicts_are_what_the_report_writes_from_their_rows():
+    """The README's block of verdict runs apart from the bench is, character for character, what
+    `swingbench report DIR ... --at-scale README.md` writes from the folders it names, in order."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(AT_SCALE_START, 1)[1].split(AT_SCALE_END, 1)[0]
+    folders = [ROOT / source for source in re.findall(r"From `([^`]+)/rows\.jsonl`", block)]
+    assert folders
+    runs = [(RowStore(f, create=False).read().rows, json.loads((f / "metadata.json").read_text(encoding="utf-8")), f)
+            for f in folders]
+    assert block == at_scale_block(runs, ROOT / "README.md")
+
+
+def test_report_at_scale_writes_only_its_block_and_refuses_what_it_cannot_write(tmp_path, capsys):
+    """`--at-scale` replaces its own block from several folders and touches nothing else; a folder
+    without verdicts, several folders without it, or a README without its markers: one line, no write."""
+    from harness.usage import EXIT_USAGE
+
+    readme = tmp_path / "README.md"
+    text = f"intro\n{README_START}\nbench\n{README_END}\n{AT_SCALE_START}\nold\n{AT_SCALE_END}\nend\n"
+    readme.write_text(text)
+    run = ROOT / "results" / "verdicts-case118"
+    assert main(["report", str(run), str(run), "--at-scale", str(readme)]) == 0
+    written = readme.read_text()
+    assert written.startswith(f"intro\n{README_START}\nbench\n{README_END}\n") and written.endswith("end\n")
+    assert "old" not in written and written.count("- **case118**, 11 queries") == 2
+    for argv, message in ((["report", str(ROOT / "results" / "pinnsim-claim"), "--at-scale", str(readme)],
+                           "has no verdict rows"),
+                          (["report", str(run), str(run)], "one DIR at a time"),
+                          (["report", str(run), "--at-scale", str(tmp_path / "none.md")], "cannot read")):
+        before = readme.read_text()
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == EXIT_USAGE and message in capsys.readouterr().err
+        assert readme.read_text() == before
 
 
 def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:
@@ -149,7 +186,7 @@ def test_the_coverage_table_of_the_methods_page_is_the_rows_of_its_csv():
 
 def _outside_generated(text: str) -> str:
     """`text` without its generated blocks (between swingbench's start and end markers) and code."""
-    text = re.sub(r"<!-- swingbench:(\w+):start -->.*?<!-- swingbench:\1:end -->", "", text, flags=re.DOTALL)
+    text = re.sub(r"<!-- swingbench:([\w-]+):start -->.*?<!-- swingbench:\1:end -->", "", text, flags=re.DOTALL)
     return re.sub(r"```.*?```", "", text, flags=re.DOTALL)
 
 

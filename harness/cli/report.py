@@ -1,6 +1,7 @@
 """`swingbench report DIR`: a results folder's tables, figures and README re-rendered from its rows
 (`cmd_report`); with `--update-readme` and `--docs`, also the README's verdicts and the results
-pages (`write_docs`, which `swingbench run` calls too).
+pages (`write_docs`, which `swingbench run` calls too); `swingbench report DIR ... --at-scale
+README`: only the README's block of the verdict runs apart from the bench.
 
 This module imports only the standard library until the command runs: the CLI imports it to build
 its parser."""
@@ -12,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from harness.cli.readme import README_END, README_START, around, replace_section
+from harness.cli.readme import AT_SCALE_END, AT_SCALE_START, README_END, README_START, around, replace_section
 from harness.usage import UsageError
 
 __all__ = ["DOCS_HELP", "add_parser", "cmd_report", "write_docs"]
@@ -25,12 +26,18 @@ DOCS_HELP = ("write the documentation site's results pages into this folder: one
 def add_parser(sub) -> None:
     report = sub.add_parser("report", help="re-render a results folder's tables, figures and pages from its rows",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
-                                        "with --update-readme and --docs, the README's verdicts and the results pages.")
-    report.add_argument("directory", type=Path)
+                                        "with --update-readme and --docs, the README's verdicts and the results pages; "
+                                        "with --at-scale, only the README's block of the verdict runs apart from the "
+                                        "bench, from one or more DIRs.")
+    report.add_argument("directory", type=Path, nargs="+", metavar="DIR")
     report.add_argument("--update-readme", type=Path, default=None, metavar="README",
                         help="also replace the generated verdicts section of this README (and write the results "
                              "pages, --docs)")
     report.add_argument("--docs", type=Path, default=None, metavar="PAGES", help=DOCS_HELP)
+    report.add_argument("--at-scale", type=Path, default=None, metavar="README",
+                        help="write only this README's generated block of verdict runs apart from make bench "
+                             "(a scaling case's verdicts: too long for the bench), one paragraph per DIR in the "
+                             "order given; the folders' tables are left as they are")
 
 
 def write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: Path) -> None:
@@ -47,18 +54,19 @@ def write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: 
                         readme_block(rows, meta, args.update_readme, pages, results), args.command)
 
 
-def cmd_report(args: argparse.Namespace) -> int:
+def _read_run(directory: Path) -> tuple[list[dict], dict]:
+    """(rows, metadata) of a results folder; UsageError when it is not one or holds no rows, a
+    warning (and {}) for unreadable metadata."""
     from harness.cli.outcome import read_rows
-    from harness.report.files import write_report
     from harness.store import RowStore
 
-    if not args.directory.is_dir():
-        raise UsageError(f"swingbench report: {args.directory} is not a folder of results")
-    store = RowStore(args.directory, create=False)
+    if not directory.is_dir():
+        raise UsageError(f"swingbench report: {directory} is not a folder of results")
+    store = RowStore(directory, create=False)
     rows = read_rows(store)
     if not rows:
         raise UsageError(f"swingbench report: no rows in {store.path}")
-    meta_path = args.directory / "metadata.json"
+    meta_path = directory / "metadata.json"
     meta = {}
     if meta_path.exists():
         try:
@@ -69,6 +77,36 @@ def cmd_report(args: argparse.Namespace) -> int:
             print(f"[swingbench] warning: {meta_path} is unreadable ({exc}); the tables are written without it",
                   file=sys.stderr)
             meta = {}
+    return rows, meta
+
+
+def _at_scale(args: argparse.Namespace) -> int:
+    from harness.report.pages import at_scale_block
+
+    flag = "--at-scale"
+    around(args.at_scale, AT_SCALE_START, AT_SCALE_END, "report", flag)
+    runs = [(*_read_run(directory), directory) for directory in args.directory]
+    try:
+        block = at_scale_block(runs, args.at_scale)
+    except ValueError as exc:
+        raise UsageError(f"swingbench report: {flag}: {exc}") from None
+    replace_section(args.at_scale, AT_SCALE_START, AT_SCALE_END, block, "report", flag)
+    print(f"[swingbench] {args.at_scale}: the at-scale verdicts of {len(runs)} run(s)")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from harness.report.files import write_report
+
+    if args.at_scale:
+        if args.update_readme or args.docs:
+            raise UsageError("swingbench report: --at-scale writes only its README block: leave out --update-readme "
+                             "and --docs")
+        return _at_scale(args)
+    if len(args.directory) > 1:
+        raise UsageError("swingbench report: one DIR at a time (several only with --at-scale)")
+    args.directory = args.directory[0]
+    rows, meta = _read_run(args.directory)
     if args.update_readme:
         around(args.update_readme, README_START, README_END, "report")
     try:
