@@ -1,16 +1,12 @@
 """How the kernels are compiled: numba's nopython mode with numpy's error model, cached on disk,
-without the GIL (`COMPILE`: a kernel of minutes leaves the interpreter's other threads running,
-among them the one that answers Ctrl-C, `harness.cli.interrupts`), every compiled function with a
-fixed identity in pickles, so that the closures that call it (the variants of one integrator,
-`jit_variant`) find their cache entries in every process."""
+every compiled function with a fixed identity in pickles, so that the closures that call it (the
+variants of one integrator, `jit_variant`) find their cache entries in every process."""
 
 from __future__ import annotations
 
 from numba import njit
 
-__all__ = ["COMPILE", "jit_function", "jit_variant", "name_for_cache"]
-
-COMPILE = {"cache": True, "error_model": "numpy", "nogil": True}  # numba.njit's flags of every kernel
+__all__ = ["jit_function", "jit_variant", "name_for_cache"]
 
 
 def name_for_cache(dispatcher):
@@ -29,7 +25,7 @@ def name_for_cache(dispatcher):
 def jit_function(py_func):
     """`py_func` compiled as every function the kernels call (cached, numpy's error model), with
     its identity for the cache (`name_for_cache`)."""
-    return name_for_cache(njit(**COMPILE)(py_func))
+    return name_for_cache(njit(cache=True, error_model="numpy")(py_func))
 
 
 def jit_variant(py_func, variant: str, **flags):
@@ -39,4 +35,4 @@ def jit_variant(py_func, variant: str, **flags):
     counter, so two variants loaded from the cache that two processes numbered alike would clash
     (measured: a kernel returning with "'descr' is NULL")."""
     py_func.__qualname__ = f"{py_func.__qualname__}_{variant}"
-    return name_for_cache(njit(**COMPILE, **flags)(py_func))
+    return name_for_cache(njit(cache=True, error_model="numpy", **flags)(py_func))

@@ -18,7 +18,7 @@ from numba import njit
 __all__ = ["grid", "points"]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _p1_weights(x: float, nodes: np.ndarray, weights: np.ndarray, out: np.ndarray) -> None:
     """The S interpolation weights of P1 = x into `out` (S,): 1 at a node it equals."""
     total = 0.0
@@ -33,7 +33,7 @@ def _p1_weights(x: float, nodes: np.ndarray, weights: np.ndarray, out: np.ndarra
     out /= total
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _time_weights(t: float, h: float, n_knots: int) -> tuple[int, float, float, float, float]:
     """Knot i of the interval holding t (the last one from t_final on) and the cubic Hermite
     weights of values[i], slopes[i], values[i + 1], slopes[i + 1]."""
@@ -44,7 +44,7 @@ def _time_weights(t: float, h: float, n_knots: int) -> tuple[int, float, float, 
     return i, (1.0 + 2.0 * s) * r * r, h * s * r * r, s * s * (3.0 - 2.0 * s), -h * s * s * r
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _coefficients(i: int, c0: float, c1: float, c2: float, c3: float, values: np.ndarray,
                   slopes: np.ndarray, out: np.ndarray) -> None:
     """The (S, k) modal coefficients at the time of weights (i, c0..c3) into `out`."""
@@ -54,7 +54,7 @@ def _coefficients(i: int, c0: float, c1: float, c2: float, c3: float, values: np
             out[s, q] = c0 * v0[s, q] + c1 * d0[s, q] + c2 * v1[s, q] + c3 * d1[s, q]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _coefficients_at(t: np.ndarray, h: float, values: np.ndarray, slopes: np.ndarray) -> np.ndarray:
     """The modal coefficients (S, len(t), k) at the times t: the time weights first, then every
     node's coefficients in memory order."""
@@ -73,7 +73,7 @@ def _coefficients_at(t: np.ndarray, h: float, values: np.ndarray, slopes: np.nda
     return out
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _combine(w: np.ndarray, C: np.ndarray, out: np.ndarray) -> None:
     """out (k,) = w (S,) @ C (S, k): the coefficients at one P1."""
     out[:] = 0.0
@@ -83,7 +83,7 @@ def _combine(w: np.ndarray, C: np.ndarray, out: np.ndarray) -> None:
             out[q] += ws * C[s, q]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _add_modes(a: np.ndarray, basis_t: np.ndarray, out: np.ndarray) -> None:
     """out (n,) += a (k,) @ basis_t (k, n)."""
     for q in range(basis_t.shape[0]):
@@ -92,7 +92,7 @@ def _add_modes(a: np.ndarray, basis_t: np.ndarray, out: np.ndarray) -> None:
             out[r] += c * mode[r]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def grid(t: np.ndarray, P1: np.ndarray, h: float, nodes: np.ndarray, weights: np.ndarray, values: np.ndarray,
          slopes: np.ndarray, basis_t: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """The quantity at every (P1[p], t[j]): (len(P1), len(t), n). The coefficients at the query
@@ -115,7 +115,7 @@ def grid(t: np.ndarray, P1: np.ndarray, h: float, nodes: np.ndarray, weights: np
     return out.reshape(n_p, n_t, n)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def points(t: np.ndarray, P1: np.ndarray, h: float, nodes: np.ndarray, weights: np.ndarray, values: np.ndarray,
            slopes: np.ndarray, basis_t: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """The quantity at each pair (t[i], P1[i]): (len(t), n)."""
