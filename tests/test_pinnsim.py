@@ -202,7 +202,8 @@ def test_a_saved_component_that_is_not_one_is_refused(tmp_path):
         Component.load(tmp_path / "bad")
 
 
-@pytest.mark.parametrize("option,message", [("bogus", "an option is KEY=VALUE"), ("bogus=1", "unknown option(s) bogus")])
+@pytest.mark.parametrize("option,message", [("bogus", "an option is KEY=VALUE"), ("bogus=1", "unknown option(s) bogus"),
+                                            ("h=0.1", "the step is --h")])
 def test_the_one_step_error_script_refuses_a_bad_option_in_one_line(option, message, capsys):
     """`python -m solvers.pinn.component_error --option KEY=VALUE` measures the network of those
     options; a malformed or unknown option is argparse's one-line error (exit 2), before training."""

@@ -130,9 +130,12 @@ def main(argv: list[str] | None = None) -> int:
     from solvers import make_solver
     from solvers.pinn.pinnsim import PinnSim
 
+    options = dict(args.option)
+    if "h" in options:
+        parser.error("the step is --h, not --option h=...")
     try:
-        solver = make_solver("pinnsim", args.case, **{**dict(args.option), "h": args.h})
-    except ValueError as exc:
+        solver = make_solver("pinnsim", args.case, **options, h=args.h)
+    except (ValueError, RuntimeError) as exc:  # RuntimeError: JAX not installed (SolverUnavailable)
         parser.error(str(exc))
     assert isinstance(solver, PinnSim)
     report = solver.fit()
