@@ -88,10 +88,12 @@ def test_report_at_scale_writes_only_its_block_and_refuses_what_it_cannot_write(
     written = readme.read_text()
     assert written.startswith(f"intro\n{README_START}\nbench\n{README_END}\n") and written.endswith("end\n")
     assert "old" not in written and written.count("- **case118**, 11 queries") == 2
+    (tmp_path / "bare.md").write_text("no markers\n")
     for argv, message in ((["report", str(ROOT / "results" / "pinnsim-claim"), "--at-scale", str(readme)],
                            "has no verdict rows"),
                           (["report", str(run), str(run)], "one DIR at a time"),
-                          (["report", str(run), "--at-scale", str(tmp_path / "none.md")], "cannot read")):
+                          (["report", str(run), "--at-scale", str(tmp_path / "none.md")], "cannot read"),
+                          (["report", str(run), "--at-scale", str(tmp_path / "bare.md")], "has no <!-- swingbench")):
         before = readme.read_text()
         with pytest.raises(SystemExit) as info:
             main(argv)

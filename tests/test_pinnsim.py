@@ -200,3 +200,15 @@ def test_a_saved_component_that_is_not_one_is_refused(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(ValueError, match="not a component PINN"):
         Component.load(tmp_path / "bad")
+
+
+@pytest.mark.parametrize("option,message", [("bogus", "an option is KEY=VALUE"), ("bogus=1", "unknown option(s) bogus"),
+                                            ("h=0.1", "the step is --h")])
+def test_the_one_step_error_script_refuses_a_bad_option_in_one_line(option, message, capsys):
+    """`python -m solvers.pinn.component_error --option KEY=VALUE` measures the network of those
+    options; a malformed or unknown option is argparse's one-line error (exit 2), before training."""
+    from solvers.pinn.component_error import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--out", "unused", "--option", option])
+    assert info.value.code == 2 and message in capsys.readouterr().err

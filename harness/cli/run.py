@@ -113,6 +113,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     from dataclasses import replace
 
+    from harness.cli.interrupts import answered_at_once
     from harness.cli.outcome import outcome, read_rows
     from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
@@ -193,7 +194,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             "blas_threads_by_adapter": blas or "as pinned"}
     atomic_write(args.out / "metadata.json", json.dumps(meta, indent=2, default=str))
     try:
-        with executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
+        with answered_at_once(lambda: interrupted_message(store, argv)), \
+                executors.choose(args.scheduler, args.dask_local, workers=1, threads=1) as executor:  # a unit at a time
             counts = execute(units, settings, store, executor, progress=progress_setting(args),
                              done=contents.completed if contents else None)  # resume prepared
     except executors.ExecutorUnavailable as exc:

@@ -114,6 +114,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"[swingbench sweep] {len(units)} runs", file=sys.stderr)
         return 0
 
+    from harness.cli.interrupts import answered_at_once
     from harness.cli.outcome import outcome
     from harness.cli.results_folder import interrupted_message, open_results
     from harness.provenance import metadata
@@ -134,14 +135,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     done = contents.completed if contents else set()
     print(f"[swingbench sweep] {len(units)} runs on {executor}"
           + (f"; {len(done)} unit(s) of work already recorded" if done else ""), file=sys.stderr)
+    argv = getattr(args, "argv", sys.argv[1:])
     try:
-        with executors.choose(args.scheduler, args.dask_local, args.workers,
-                              local=executors.joblib(args.workers)) as run:
+        with answered_at_once(lambda: interrupted_message(store, argv)), \
+                executors.choose(args.scheduler, args.dask_local, args.workers, local=executors.joblib(args.workers)) as run:
             counts = execute(units, settings, store, run, progress=progress_setting(args), done=done)
     except executors.ExecutorUnavailable as exc:
         raise UsageError(f"swingbench: {exc}") from None
     except KeyboardInterrupt:
-        print(interrupted_message(store, getattr(args, "argv", sys.argv[1:])), file=sys.stderr)
+        print(interrupted_message(store, argv), file=sys.stderr)
         return 130
     markdown = write_outputs(store, args.out, meta)
     print(markdown)

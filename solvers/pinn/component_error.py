@@ -10,9 +10,10 @@ whose exact trajectory takes an interval's inputs out of the box (a slip beyond 
 outside the step's domain: counted, not measured.
 
     python -m solvers.pinn.component_error --out results/pinnsim-component [--samples 400] [--seed 7]
+        [--option KEY=VALUE ...]
 
-writes one row per time bin (`component_error.csv`) of the default `pinnsim` network, loaded or
-trained as `fit` does.
+writes one row per time bin (`component_error.csv`) of the `pinnsim` network of the default options
+(or of those `--option` sets, e.g. `--option rate_weight=0.2`), loaded or trained as `fit` does.
 """
 
 from __future__ import annotations
@@ -105,6 +106,17 @@ def one_step_error(component: Component, h: float, samples: int, seed: int, n_t:
             "exact_seconds": exact_s, "intervals": count, "inputs": list(INPUTS)}
 
 
+def _option(text: str) -> tuple[str, object]:
+    """"KEY=VALUE" -> (KEY, VALUE), VALUE read as JSON where it is JSON, as text otherwise."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"an option is KEY=VALUE, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="The pinnsim component PINN's one-step error (rows to --out).")
     parser.add_argument("--out", type=Path, required=True)
@@ -112,11 +124,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--h", type=float, default=0.25)
     parser.add_argument("--case", default="wscc9", help="any case pinnsim takes: the network does not depend on it")
+    parser.add_argument("--option", type=_option, action="append", default=[], metavar="KEY=VALUE",
+                        help="a pinnsim option of the network measured (repeatable), e.g. rate_weight=0.2")
     args = parser.parse_args(argv)
     from solvers import make_solver
     from solvers.pinn.pinnsim import PinnSim
 
-    solver = make_solver("pinnsim", args.case, h=args.h)
+    options = dict(args.option)
+    if "h" in options:
+        parser.error("the step is --h, not --option h=...")
+    try:
+        solver = make_solver("pinnsim", args.case, **options, h=args.h)
+    except (ValueError, RuntimeError) as exc:  # RuntimeError: JAX not installed (SolverUnavailable)
+        parser.error(str(exc))
     assert isinstance(solver, PinnSim)
     report = solver.fit()
     result = one_step_error(solver.component, args.h, args.samples, args.seed)
