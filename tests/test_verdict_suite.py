@@ -232,7 +232,8 @@ def test_a_rival_whose_first_call_is_over_the_limit_is_refused_after_that_call_a
 
     class Slow:
         name = "slow query"
-        points = True  # a batch of points: not probed on a few trajectories
+        points = True  # a batch of points over one P1: not probed on a few of its P1 values
+        P1 = np.zeros(3)
 
         def call(self, solver):
             def run():
