@@ -6,13 +6,12 @@ kernel, a numba kernel) a Ctrl-C waits, unanswered, until the call returns. The 
 does write the signal's number to the wakeup file descriptor at once (`signal.set_wakeup_fd`), and
 a thread blocked on that descriptor can run then, provided the call released the GIL (XLA, torch,
 BLAS and the PINNs' numba query kernels do; the classical numba kernels do not, so there the answer
-waits for the call, which the verdicts' probes keep to minutes at most): it says on stderr that
+waits for the call, which for a verdict's rival the probe keeps within a few times `max_query_s`): it says on stderr that
 the interrupt was received, and on a second Ctrl-C ends the process. Every row written before is
 on disk (the row store fsyncs each, its completion record last), so what is lost is the unit of
 work in progress, which `--resume` measures again.
 
-This module imports only the standard library (psutil only on the way out of a second Ctrl-C):
-the CLI imports it to build its parser."""
+This module imports only the standard library (psutil only on the way out of a second Ctrl-C)."""
 
 from __future__ import annotations
 
