@@ -170,6 +170,9 @@ class AbstractSolver(abc.ABC):
     Capabilities are declared here, once, and read everywhere; nothing infers them from option
     names (`tests/test_plan.py` checks each declaration against the adapter's options):
     - `trains`: `fit` trains a model from a seed (option `seed`); runs repeat it over seeds;
+    - `trained_per_case`: (with `trains`) a model is trained for each case, so a run's per-case
+      training budget (`harness.settings.Settings.case_pinn_options`) applies; False for a model
+      trained once for every case, whose budget is its own options;
     - `has_tolerance`: relative and absolute tolerances (options `rtol`, `atol`) set its accuracy;
     - `takes_threads`: option `threads` sets its thread count; runs give it theirs;
     - `can_save`: `save(path)` writes a fitted model and `load(path)` reads it back (the model
@@ -212,6 +215,7 @@ class AbstractSolver(abc.ABC):
     CONFIGS: ClassVar[Mapping[str, Mapping[str, Any]]] = {DEFAULT_CONFIG: {}}
     bounded_domain: ClassVar[bool] = False
     trains: ClassVar[bool] = False
+    trained_per_case: ClassVar[bool] = True
     has_tolerance: ClassVar[bool] = False
     takes_threads: ClassVar[bool] = False
     can_save: ClassVar[bool] = False

@@ -232,10 +232,11 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     from systems.cases import SMIB_INFERENCE as forward
 
     settings = replace(DEFAULT, seeds=(0,), case_pinn_options={"wscc9": {"max_iterations": 90, "max_seconds": None}})
-    specs = default_specs(["jax-pinn", "numba-rk"], ["marching", "default"], settings)
+    specs = default_specs(["jax-pinn", "numba-rk", "pinnsim"], ["marching", "default"], settings)
     units = plan(specs, [forward, CASES["wscc9"]], list(SUITES.values()), settings).units
     budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_iterations") for u in units}
     assert budget[("wscc9", "jax-pinn", "marching")] == 90
+    assert budget[("wscc9", "pinnsim", "default")] is None  # trained once for every case: its own budget
     assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
     assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
     assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {

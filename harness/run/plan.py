@@ -188,12 +188,12 @@ def _first_seed(spec: SolverSpec, specs: list[SolverSpec]) -> bool:
 def _budgeted(spec: SolverSpec, case: Case, settings: Settings) -> SolverSpec:
     """`spec` with the training budget `settings.case_pinn_options` gives `case` (iterations
     per window, so that a seed gives the same network on any machine; the options show in the
-    row's variant), for adapters that train: each option the adapter has, unless the spec sets it
+    row's variant), for adapters that train a model per case (`trained_per_case`): each option the adapter has, unless the spec sets it
     to another value than the run-wide `settings.pinn_options` (an option of the command line);
     otherwise `spec`."""
     budget = settings.case_pinn_options.get(case.name)
     cls = solver_class(spec.solver)
-    if not budget or cls is None or not cls.trains:
+    if not budget or cls is None or not cls.trains or not cls.trained_per_case:
         return spec
     own = {key: value for key, value in spec.options
            if key not in settings.pinn_options or settings.pinn_options[key] != value}
