@@ -112,3 +112,30 @@ def test_the_heat_map_has_a_row_against_the_surrogate_only_where_the_rows_carry_
     # the solver's cells as before, and the surrogate's beside them: the grid's worst seed with its
     # ratio; the point's label over seeds alone, its worst seed having no surrogate as accurate
     assert sorted(new_cells) == sorted([*old_cells, f"3x\n{PINN_FASTER}", TIE])
+
+
+def test_rows_stored_under_another_interval_rule_are_restated_from_their_samples():
+    """A seed row written before the repeat-run interval (no `interval` column, the narrower
+    interval and its label stored) is read with the interval and label its samples give under the
+    current rule, the ODE rival's and the surrogate's; a row under the current rule is read as
+    stored, and a row without samples (a loss by the gate) keeps its label."""
+    from harness.measure.paired import INTERVAL, ratio_interval, verdict_label
+    from harness.report.verdicts import restated
+
+    pinn = [1e-3, 1.01e-3, 0.99e-3, 1.02e-3]
+    rival = [1.6e-3, 1.62e-3, 1.58e-3, 1.61e-3]
+    narrow = ratio_interval(pinn, rival, repeat=False)
+    assert verdict_label(*narrow[1:]) == PINN_FASTER
+    old = {"label": PINN_FASTER, "ratio": narrow[0], "ratio_low": narrow[1], "ratio_high": narrow[2],
+           "pinn_samples_s": pinn, "rival_samples_s": rival, "surrogate_label": PINN_FASTER,
+           "surrogate_pinn_samples_s": pinn, "surrogate_samples_s": rival, "surrogate_ratio_low": narrow[1],
+           "surrogate_ratio_high": narrow[2]}
+    gated = {"label": CLASSICAL_FASTER, "pinn_samples_s": np.nan, "rival_samples_s": np.nan}
+    rows = restated(pd.DataFrame([old, gated]))
+    _, low, high = ratio_interval(pinn, rival)
+    assert low < narrow[1] and high > narrow[2] and verdict_label(low, high) == TIE
+    assert rows.loc[0, ["ratio_low", "ratio_high", "label"]].tolist() == [low, high, TIE]
+    assert rows.loc[0, ["surrogate_ratio_low", "surrogate_ratio_high", "surrogate_label"]].tolist() == [low, high, TIE]
+    assert rows.loc[1, "label"] == CLASSICAL_FASTER and set(rows["interval"]) == {INTERVAL}
+    current = pd.DataFrame([{**old, "interval": INTERVAL}])
+    assert restated(current).loc[0, "label"] == PINN_FASTER  # stored under the current rule: as stored

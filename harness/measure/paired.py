@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "NOT_APPLICABLE", "NO_RIVAL", "PINN_FASTER", "RUN_TO_RUN", "SAMPLE_S", "TIE", "TIE_FACTOR",
+__all__ = ["CLASSICAL_FASTER", "CONFIDENCE", "INTERVAL", "NOT_APPLICABLE", "NO_RIVAL", "PINN_FASTER", "RUN_TO_RUN", "SAMPLE_S", "TIE", "TIE_FACTOR",
            "calls_per_sample", "interleaved", "ratio_interval", "verdict_label", "warm_call_s"]
 
 SAMPLE_S = 2e-3  # a sample lasts at least this long (s): fast calls are timed in blocks
@@ -34,6 +34,10 @@ TIE_FACTOR = 1.2
 # (0.104 between the bench and the verdict run, rounded up: `swingbench compare results results/verdicts`;
 # docs/methods.md, "Intervals across runs").
 RUN_TO_RUN = 0.11
+# What a verdict's interval states: where the ratio of a repeat run falls (a prediction interval), so
+# that "faster" means a second run would say so too; each row records it (`interval`), and rows under
+# another rule are restated from their samples (`harness.report.verdicts.restated`).
+INTERVAL = f"repeat run, run-to-run {RUN_TO_RUN:g}"
 PINN_FASTER, CLASSICAL_FASTER, TIE = "PINN faster", "classical faster", "tie"
 NO_RIVAL = "no rival"  # no sweep point as accurate as the PINN, or every such point out of time
 NOT_APPLICABLE = "not applicable"  # no rival of that kind is made for the case (a surrogate of step cases on a fault)
@@ -104,14 +108,18 @@ def _median_ratio(rival: np.ndarray, pinn: np.ndarray, axis: int = -1) -> np.nda
 
 
 def ratio_interval(pinn_s, rival_s, seed: int = 0, resamples: int = 4999,
-                   run_to_run: float = RUN_TO_RUN) -> tuple[float, float, float]:
+                   run_to_run: float = RUN_TO_RUN, repeat: bool = True) -> tuple[float, float, float]:
     """(ratio, low, high): the rival's median time over the PINN's (> 1: the PINN is faster) and
     its `CONFIDENCE` interval. Two parts, added on the log scale: the percentile bootstrap over the
     paired samples (`scipy.stats.bootstrap`, paired: a resample keeps the two samples of one moment
     together; seeded, so the same samples give the same interval), the spread within one run; and a
     normal term of standard deviation `run_to_run` (of log(ratio)), the spread between runs that
     one run's samples cannot show (`RUN_TO_RUN`). Each side's half-width is sqrt(b**2 + (z s)**2),
-    b that side's bootstrap half-width, z the normal quantile. Needs >= 2 pairs of positive times."""
+    b that side's bootstrap half-width, z the normal quantile: an interval for the ratio this
+    machine gives over runs. With `repeat` (`INTERVAL`) each half-width is sqrt(2) times that: the
+    interval of a repeat run's ratio, whose log differs from this run's by its own within-run and
+    run-to-run errors as well (twice the variance, the repeat's within-run spread taken as this
+    run's). Needs >= 2 pairs of positive times."""
     pinn, rival = np.asarray(pinn_s, float), np.asarray(rival_s, float)
     if pinn.shape != rival.shape or pinn.ndim != 1 or pinn.size < 2:
         raise ValueError(f"ratio_interval needs two equal 1-D samples of >= 2 times, got {pinn.shape}, {rival.shape}")
@@ -123,11 +131,10 @@ def ratio_interval(pinn_s, rival_s, seed: int = 0, resamples: int = 4999,
         res = stats.bootstrap((rival, pinn), _median_ratio, paired=True, vectorized=True, n_resamples=resamples,
                               confidence_level=CONFIDENCE, method="percentile", rng=np.random.default_rng(seed))
         low, high = float(res.confidence_interval.low), float(res.confidence_interval.high)
-    if run_to_run == 0:
-        return ratio, low, high
     between = float(stats.norm.ppf(0.5 + CONFIDENCE / 2)) * run_to_run
-    below, above = math.log(ratio / low), math.log(high / ratio)
-    return ratio, ratio * math.exp(-math.hypot(below, between)), ratio * math.exp(math.hypot(above, between))
+    widen = math.sqrt(2.0) if repeat else 1.0
+    below, above = (widen * math.hypot(math.log(x), between) for x in (ratio / low, high / ratio))
+    return ratio, ratio * math.exp(-below), ratio * math.exp(above)
 
 
 def verdict_label(low: float, high: float) -> str:

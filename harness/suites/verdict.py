@@ -34,6 +34,7 @@ import numpy as np
 
 from harness.measure.paired import (
     CLASSICAL_FASTER,
+    INTERVAL,
     NO_RIVAL,
     NOT_APPLICABLE,
     RUN_TO_RUN,
@@ -192,7 +193,7 @@ def _side_columns(side: dict, gate: bool, settings: Settings, rivals: Rivals, qu
             "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
             "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(side["calls"]),
-            "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN,
+            "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN, "interval": INTERVAL,
             "label": verdict_label(low, high)}
 
 
@@ -206,7 +207,7 @@ def _surrogate_columns(side: dict, gate: bool, settings: Settings, surrogates: R
                 "surrogate_note": "; ".join(surrogates.absent) or "no classical surrogate made for this case"}
     columns = _side_columns(side, gate, settings, surrogates, query)
     renamed = {{"rival": "surrogate", "rivals_note": "surrogate_note"}.get(key, "surrogate_" + key.removeprefix("rival_")): value
-               for key, value in columns.items() if key != "run_to_run"}
+               for key, value in columns.items() if key not in ("run_to_run", "interval")}
     return {**renamed, "surrogate_fit_s": side["rival"].fit_s if side["rival"] is not None else math.nan}
 
 
