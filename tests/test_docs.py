@@ -13,11 +13,18 @@ import pytest
 
 from harness.cli import main
 from harness.cli.compare import COMPARE_END, COMPARE_START, compare_block
-from harness.cli.readme import AT_SCALE_END, AT_SCALE_START, README_END, README_START
+from harness.cli.readme import (
+    AT_SCALE_END,
+    AT_SCALE_START,
+    README_END,
+    README_START,
+    STEP_CLAIM_END,
+    STEP_CLAIM_START,
+)
 from harness.report.files import write_report
 from harness.report.labels import Labels, split_items
 from harness.report.markdown import LADDER_HEADING
-from harness.report.pages import GENERATED, at_scale_block, readme_block, write_pages
+from harness.report.pages import GENERATED, at_scale_block, readme_block, step_claim_block, write_pages
 from harness.store import RowStore
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -100,6 +107,41 @@ def test_report_at_scale_writes_only_its_block_and_refuses_what_it_cannot_write(
             main(argv)
         assert info.value.code == EXIT_USAGE and message in capsys.readouterr().err
         assert readme.read_text() == before
+
+
+def test_the_readme_step_claim_is_what_the_report_writes_from_its_rows():
+    """The README's step-claim block is, character for character, what `swingbench report DIR
+    --step-claim README.md` writes from the folder it names: a bullet per case and the component
+    network's one-step line."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split(STEP_CLAIM_START, 1)[1].split(STEP_CLAIM_END, 1)[0]
+    (folder,) = [ROOT / source for source in re.findall(r"from `([^`]+)/rows\.jsonl`", block)]
+    rows = RowStore(folder, create=False).read().rows
+    meta = json.loads((folder / "metadata.json").read_text(encoding="utf-8"))
+    assert block == step_claim_block(rows, meta, folder, ROOT / "README.md")
+    assert "- **wscc9**: pinnsim" in block and "one-step error in delta" in block
+
+
+def test_report_step_claim_writes_only_its_block_and_refuses_what_it_cannot_write(tmp_path, capsys):
+    """`--step-claim` replaces its own block and nothing else; a folder without a trained step
+    sweep, two folders, or the flag beside --at-scale: one line, no write."""
+    from harness.usage import EXIT_USAGE
+
+    readme = tmp_path / "README.md"
+    readme.write_text(f"intro\n{STEP_CLAIM_START}\nold\n{STEP_CLAIM_END}\n{AT_SCALE_START}\n{AT_SCALE_END}\nend\n")
+    claim, verdicts = ROOT / "results" / "pinnsim-claim", ROOT / "results" / "verdicts-case118"
+    assert main(["report", str(claim), "--step-claim", str(readme)]) == 0
+    written = readme.read_text()
+    assert written.startswith(f"intro\n{STEP_CLAIM_START}\n_Generated") and written.endswith(f"{AT_SCALE_END}\nend\n")
+    assert "old" not in written and "- **ieee39**: pinnsim" in written
+    for argv, message in ((["report", str(verdicts), "--step-claim", str(readme)], "has no step sweep"),
+                          (["report", str(claim), str(claim), "--step-claim", str(readme)], "one DIR"),
+                          (["report", str(claim), "--step-claim", str(readme), "--at-scale", str(readme)],
+                           "leave out")):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == EXIT_USAGE and message in capsys.readouterr().err
+        assert readme.read_text() == written
 
 
 def _frame(*specs: tuple[str, str, str]) -> pd.DataFrame:

@@ -53,7 +53,7 @@ def test_the_largest_qualifying_step_is_chosen_with_the_times_of_its_row():
 def test_no_qualifying_step_says_none_with_the_finest_steps_error():
     table = step_claim_table(suite_frames(_rows()), threshold=1e-5)
     step = "largest step at COI rel. L2 <= 1e-05 (s)"
-    assert _cell(table, "step-pinn", step) == f"{NONE} (finest 0.01)"
+    assert _cell(table, "step-pinn", step) == f"{NONE} (finest 0.01 s)"
     assert _cell(table, "step-pinn", "COI rel. L2") == "0.00039"
     assert _cell(table, "step-pinn", "grid 100 x 201 (ms)") == "n/a"
     assert _cell(table, "numba-rk", step) == "0.02"

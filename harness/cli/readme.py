@@ -1,7 +1,8 @@
 """A README's generated sections: the text between a start and an end marker, read and replaced
 as a whole (`swingbench run` and `report --update-readme`: the verdicts between `README_START` and
 `README_END`; `report --at-scale`: the verdict runs apart from the bench between `AT_SCALE_START`
-and `AT_SCALE_END`; `swingbench compare --update-readme`: the comparison between its own markers).
+and `AT_SCALE_END`; `report --step-claim`: pinnsim's step claim between `STEP_CLAIM_START` and
+`STEP_CLAIM_END`; `swingbench compare --update-readme`: the comparison between its own markers).
 
 This module imports only the standard library until it writes: the CLI imports it to build its
 parser."""
@@ -12,10 +13,12 @@ from pathlib import Path
 
 from harness.usage import UsageError
 
-__all__ = ["AT_SCALE_END", "AT_SCALE_START", "README_END", "README_START", "around", "replace_section"]
+__all__ = ["AT_SCALE_END", "AT_SCALE_START", "README_END", "README_START", "STEP_CLAIM_END", "STEP_CLAIM_START", "around",
+           "replace_section"]
 
 README_START, README_END = "<!-- swingbench:tables:start -->", "<!-- swingbench:tables:end -->"
 AT_SCALE_START, AT_SCALE_END = "<!-- swingbench:at-scale:start -->", "<!-- swingbench:at-scale:end -->"
+STEP_CLAIM_START, STEP_CLAIM_END = "<!-- swingbench:step-claim:start -->", "<!-- swingbench:step-claim:end -->"
 
 
 def around(path: Path, start: str, end: str, command: str, flag: str = "--update-readme") -> tuple[str, str]:

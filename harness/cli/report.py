@@ -1,7 +1,8 @@
 """`swingbench report DIR`: a results folder's tables, figures and README re-rendered from its rows
 (`cmd_report`); with `--update-readme` and `--docs`, also the README's verdicts and the results
 pages (`write_docs`, which `swingbench run` calls too); `swingbench report DIR ... --at-scale
-README`: only the README's block of the verdict runs apart from the bench.
+README`: only the README's block of the verdict runs apart from the bench; `swingbench report DIR
+--step-claim README`: only the README's block of pinnsim's step claim.
 
 This module imports only the standard library until the command runs: the CLI imports it to build
 its parser."""
@@ -13,7 +14,16 @@ import json
 import sys
 from pathlib import Path
 
-from harness.cli.readme import AT_SCALE_END, AT_SCALE_START, README_END, README_START, around, replace_section
+from harness.cli.readme import (
+    AT_SCALE_END,
+    AT_SCALE_START,
+    README_END,
+    README_START,
+    STEP_CLAIM_END,
+    STEP_CLAIM_START,
+    around,
+    replace_section,
+)
 from harness.usage import UsageError
 
 __all__ = ["DOCS_HELP", "add_parser", "cmd_report", "write_docs"]
@@ -38,6 +48,11 @@ def add_parser(sub) -> None:
                         help="write only this README's generated block of verdict runs apart from make bench "
                              "(a scaling case's verdicts: too long for the bench), one paragraph per DIR in the "
                              "order given; the folders' tables are left as they are")
+    report.add_argument("--step-claim", type=Path, default=None, metavar="README",
+                        help="write only this README's generated block of the step claim: per case, each "
+                             "fixed-step method's largest step at COI rel. L2 <= 1e-3 and its grid time, from a "
+                             "run that swept pinnsim's step beside the classical ones (one DIR); its tables are "
+                             "left as they are")
 
 
 def write_docs(args: argparse.Namespace, rows: list[dict], meta: dict, results: Path) -> None:
@@ -95,14 +110,32 @@ def _at_scale(args: argparse.Namespace) -> int:
     return 0
 
 
+def _step_claim(args: argparse.Namespace) -> int:
+    from harness.report.pages import step_claim_block
+
+    flag = "--step-claim"
+    if len(args.directory) > 1:
+        raise UsageError(f"swingbench report: {flag}: one DIR (the run of the step sweeps)")
+    around(args.step_claim, STEP_CLAIM_START, STEP_CLAIM_END, "report", flag)
+    rows, meta = _read_run(args.directory[0])
+    try:
+        block = step_claim_block(rows, meta, args.directory[0], args.step_claim)
+    except ValueError as exc:
+        raise UsageError(f"swingbench report: {flag}: {exc}") from None
+    replace_section(args.step_claim, STEP_CLAIM_START, STEP_CLAIM_END, block, "report", flag)
+    print(f"[swingbench] {args.step_claim}: the step claim of {args.directory[0]}")
+    return 0
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     from harness.report.files import write_report
 
-    if args.at_scale:
-        if args.update_readme or args.docs:
-            raise UsageError("swingbench report: --at-scale writes only its README block: leave out --update-readme "
-                             "and --docs")
-        return _at_scale(args)
+    blocks = [flag for flag, value in (("--at-scale", args.at_scale), ("--step-claim", args.step_claim)) if value]
+    if blocks:
+        if args.update_readme or args.docs or len(blocks) > 1:
+            raise UsageError(f"swingbench report: {blocks[0]} writes only its README block: leave out "
+                             f"{', '.join(['--update-readme', '--docs', *blocks[1:]])}")
+        return _at_scale(args) if args.at_scale else _step_claim(args)
     if len(args.directory) > 1:
         raise UsageError("swingbench report: one DIR at a time (several only with --at-scale)")
     args.directory = args.directory[0]

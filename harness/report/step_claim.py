@@ -21,8 +21,8 @@ from harness.report.frames import first_seed, label, ok, trained
 from harness.report.labels import Labels
 from harness.report.markdown import table_markdown
 
-__all__ = ["COI_THRESHOLD", "COMPONENT_CSV", "STEP_OPTIONS", "one_step_table", "step_claim_markdown",
-           "step_claim_table", "step_rows"]
+__all__ = ["COI_THRESHOLD", "COMPONENT_CSV", "STEP_OPTIONS", "one_step_line", "one_step_table", "step_claim_bullets",
+           "step_claim_markdown", "step_claim_table", "step_rows"]
 
 # The option (s) a fixed-step adapter's sweep sets: `dt` (`AbstractSolver.step_sweep`, the
 # classical integrators), `h` (pinnsim's simulator step). A row sets at most one of them.
@@ -69,7 +69,7 @@ def step_claim_table(frames: dict[str, pd.DataFrame], threshold: float = COI_THR
         row = good.loc[good["step_s"].idxmax()] if found else g.loc[g["step_s"].idxmin()]
         rows.append({"case": case, "solver": name,
                      f"largest step at COI rel. L2 <= {threshold:g} (s)":
-                         fmt(row["step_s"]) if found else f"{NONE} (finest {fmt(row['step_s'])})",
+                         fmt(row["step_s"]) if found else f"{NONE} (finest {fmt(row['step_s'])} s)",
                      "COI rel. L2": fmt(row["rel_l2_delta_coi"]), "omega rel. L2": fmt(row["rel_l2_omega"]),
                      "grid 100 x 201 (ms)": _time(row, "") if found else "n/a",
                      "single point t1 = 10 s (ms)": _time(row, "point_") if found else "n/a",
@@ -122,3 +122,40 @@ def step_claim_markdown(frames: dict[str, pd.DataFrame], folder: Path | None = N
         parts.append(table_markdown(level, "The component network's one-step error", _one_step_about(csv.parent),
                                     one_step_table(csv)))
     return f"\n{level[:-1]} Step claim\n\n" + "\n".join(parts) if parts else ""
+
+
+def step_claim_bullets(frames: dict[str, pd.DataFrame], threshold: float = COI_THRESHOLD) -> list[str]:
+    """`step_claim_table` as one Markdown bullet per case: each method's largest step at COI
+    rel. L2 <= `threshold` (s) and its grid query's median time there, or that none of its steps
+    keeps it (with the finest step's error); [] when the table is empty."""
+    claim = step_claim_table(frames, threshold)
+    if claim.empty:
+        return []
+    step = f"largest step at COI rel. L2 <= {threshold:g} (s)"
+    bullets = []
+    for case, g in claim.groupby("case", sort=False):
+        parts = []
+        for _, r in g.iterrows():
+            if r[step].startswith(NONE):
+                parts.append(f"{r['solver']}: {r[step]}, COI rel. L2 {r['COI rel. L2']} there")
+            else:
+                parts.append(f"{r['solver']}: {r[step]} s, grid {r['grid 100 x 201 (ms)']} ms")
+        bullets.append(f"- **{case}**: " + "; ".join(parts) + ".")
+    return bullets
+
+
+def one_step_line(folder: Path) -> str:
+    """One sentence of the component network's one-step error in delta from `folder`'s
+    `COMPONENT_CSV` (the largest median and the largest max over its bins of t, rad, and the span of
+    t), with the inputs measured (its JSON); "" without the CSV."""
+    csv = Path(folder) / COMPONENT_CSV
+    if not csv.exists():
+        return ""
+    data = pd.read_csv(csv)
+    line = (f"The component network's one-step error in delta over t <= {fmt(data['t_to_s'].max())} s: median "
+            f"at most {fmt(data['delta_median_rad'].max())} rad in any bin of t, max {fmt(data['delta_max_rad'].max())} rad")
+    record = csv.with_name("component_error.json")
+    if record.exists():
+        meta = json.loads(record.read_text(encoding="utf-8"))
+        line += f" ({meta['measured']} of {meta['samples']} held-out inputs inside the domain)"
+    return line + "."
