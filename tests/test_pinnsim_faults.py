@@ -17,6 +17,7 @@ from scipy.sparse.linalg import splu
 
 from solvers import make_solver
 from solvers.base import SolveError
+from solvers.pinn.component import INPUTS
 from solvers.pinn.pinnsim import FAULT_DOMAIN
 from solvers.pinn.simulator import impedance
 from solvers.pinn.simulator_faults import FAULT_ON, POST_FAULT, fault_schedule, impedances, reduced_impedance
@@ -143,3 +144,15 @@ def test_a_newton_failure_names_the_phase_the_step_and_t_c():
     with pytest.raises(SolveError, match=r"^pinnsim: Gauss-Newton did not converge at fault-on step 1 \(t = 0 s\) "
                                          r"for t_c = 0\.1 after 1 iterations: last update .*$"):
         solver.solve(np.array([0.0, 1.0]), 0.1)
+
+
+def test_a_machine_that_slips_out_of_the_domain_names_the_step_t_c_and_the_input(fitted):
+    """Past the reference CCT (`systems.stability.reference_cct`, inside the range) a machine slips
+    poles: its inputs leave any trained box, and the query is refused in one line naming the step,
+    its phase, t_c and the input (or the Newton that fails first there), never answered from outside
+    the domain."""
+    inputs = "|".join(INPUTS[1:])
+    with pytest.raises(SolveError, match=rf"^pinnsim: (Gauss-Newton did not converge )?at (fault-on|post-fault) step "
+                                         rf"\d+ \(t = [0-9.]+ s\) for t_c = 0\.35( a machine's ({inputs}) leaves the "
+                                         r"component's trained domain| after .*)$"):
+        fitted.solve(np.linspace(0.0, 3.0, 31), 0.35)
