@@ -51,7 +51,7 @@ __all__ = ["H_MAX", "STEP_SWEEP", "PinnSim", "PinnSimOptions", "machine_paramete
 H_MAX = 0.25  # s: the longest step; the component is tested over a step of this length
 STEP_SWEEP = (0.25, 0.1, 0.05, 0.025, 0.01)  # s: the work-precision sweep of h, coarsest first
 # The config "faults": the component's domain widened for a fault case (`Domain`'s fields of the
-# options below): a terminal shorted to 0 p.u. or raised past 1.15 p.u. when the fault clears, the
+# options below): a terminal voltage down to 0 p.u. (a machine at or next to the faulted bus), the
 # terminal angle of a machine next to the fault accelerating with it (theta2), and the larger slips
 # and voltage rates of the fault-on and post-fault swings of a stable clearing (v1_max - 2 v2_max
 # H_MAX = 0.5 p.u./s: the one-step error's test set, `component_error`, keeps its |v1| below it).
