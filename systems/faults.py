@@ -31,6 +31,7 @@ import numpy as np
 
 from systems.cases import Case, Fault, register_case
 from systems.network import ClassicalModel, bus_indices, reduce_to_machines
+from systems.sparse_network import SparseNetwork
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
@@ -221,7 +222,8 @@ def fault_case(case: Case, networks: FaultNetworks, *, t_final: float = FAULT_T_
         raise ValueError(f"case {case.name!r}: its network is not the pre-fault network of "
                          f"{networks.contingency.name!r}")
     name = networks.contingency.name
-    ties = None if case.network is None else tuple(complex(x) for x in np.asarray(case.network.y))
+    network = case.network
+    ties = tuple(complex(x) for x in np.asarray(network.y)) if isinstance(network, SparseNetwork) else None
     fault = Fault(name=name, G_on=_matrix(networks.G_on), B_on=_matrix(networks.B_on),
                   G_post=_matrix(networks.G_post), B_post=_matrix(networks.B_post), y=ties)
     return dataclasses.replace(
