@@ -43,6 +43,7 @@ from pydantic import (
 __all__ = [
     "Bounds",
     "Fraction",
+    "NonNegativeFloat",
     "NonNegativeInt",
     "OptionSchema",
     "PositiveFloat",
@@ -90,6 +91,8 @@ def _ordered(pair: tuple[float, float]) -> tuple[float, float]:
 
 PositiveFloat = Annotated[float, BeforeValidator(_python_scalar), Strict(),
                           Field(gt=0, allow_inf_nan=False), Describe("a positive finite number")]
+NonNegativeFloat = Annotated[float, BeforeValidator(_python_scalar), Strict(),
+                             Field(ge=0, allow_inf_nan=False), Describe("a finite number >= 0")]
 
 
 def int_at_least(low: int) -> Any:

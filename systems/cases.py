@@ -210,13 +210,20 @@ class Fault:
     (G_on, B_on), from the clearing time t_c on the post-fault one (G_post, B_post); each (n, n)
     symmetric p.u., Kron-reduced onto the machines like `Case.G`, `Case.B` (the pre-fault network,
     which set the equilibrium the case starts from). `name` names the contingency
-    (`systems.faults.Contingency`). Built by `systems.faults.fault_case`."""
+    (`systems.faults.Contingency`). Built by `systems.faults.fault_case`.
+
+    y: optionally the machines' tie admittances 1 / (j x'd_k) (n,) complex p.u. of the unreduced
+    network the three reduced ones come from, for the solvers that work from the machine terminals
+    (`solvers.pinn.pinnsim`: the impedance seen from them is D^-1 - D^-1 Y_red D^-1, D = diag(y)).
+    Derived data, as `Case.network` is: left out of the fault's equality, hash, repr and record; a
+    fault case never carries the sparse step network itself (its topology switches)."""
 
     name: str
     G_on: Matrix
     B_on: Matrix
     G_post: Matrix
     B_post: Matrix
+    y: tuple[complex, ...] | None = dataclasses.field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -305,7 +312,12 @@ class Case:
             raise ValueError("Case.fault: a fault case has no infinite bus (its networks are the machines' alone)")
         matrices = {key: _matrix(f"fault.{key}", getattr(self.fault, key), n)
                     for key in ("G_on", "B_on", "G_post", "B_post")}
-        object.__setattr__(self, "fault", Fault(name=str(self.fault.name), **matrices))
+        y = self.fault.y
+        if y is not None:
+            y = tuple(complex(x) for x in np.asarray(y, complex).ravel())
+            if len(y) != n or not all(x != 0 and math.isfinite(abs(x)) for x in y):
+                raise ValueError(f"Case.fault.y must be {n} finite nonzero tie admittances or None, got {y!r}")
+        object.__setattr__(self, "fault", Fault(name=str(self.fault.name), **matrices, y=y))
         if not 0 < self.p1_min <= self.p1_max < self.t_final:
             raise ValueError(f"Case {self.name!r}: the clearing times [p1_min, p1_max] = [{self.p1_min!r}, "
                              f"{self.p1_max!r}] s must lie in (0, t_final = {self.t_final!r}) s")
@@ -366,14 +378,15 @@ class Case:
 
 
 def case_record(case: Case) -> dict[str, Any]:
-    """The fields that define `case` (every field but the derived `network`), by name, in field
+    """The fields that define `case` (every field but the derived `network` and `Fault.y`), by name, in field
     order, plain data (a `Fault` as a dict): what a case compares and hashes by, and what is saved
     or keyed of it. A step case's record has no `fault` entry."""
     record = {f.name: getattr(case, f.name) for f in dataclasses.fields(case) if f.compare}
     if case.fault is None:
         del record["fault"]
     else:
-        record["fault"] = dataclasses.asdict(case.fault)
+        compared = {f.name for f in dataclasses.fields(case.fault) if f.compare}  # not the derived y
+        record["fault"] = {key: value for key, value in dataclasses.asdict(case.fault).items() if key in compared}
     return record
 
 

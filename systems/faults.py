@@ -31,6 +31,7 @@ import numpy as np
 
 from systems.cases import Case, Fault, register_case
 from systems.network import ClassicalModel, bus_indices, reduce_to_machines
+from systems.sparse_network import SparseNetwork
 
 if TYPE_CHECKING:  # annotations only: importing pandapower costs seconds
     from pandapower.auxiliary import pandapowerNet
@@ -215,13 +216,16 @@ def fault_case(case: Case, networks: FaultNetworks, *, t_final: float = FAULT_T_
     """The fault case of `networks`' contingency on the step case `case` (whose G, B must be the
     pre-fault network of `networks`): named '<case>-<contingency>', from the same equilibrium at
     rest, the scenario parameter the clearing time t_c in `clearing_times` (s) on [0, t_final] s,
-    no carried sparse network (the phases are reduced ones)."""
+    no carried sparse network (the phases are reduced ones), the machines' tie admittances of the
+    step case's carried network, when it has one, kept on the fault (`Fault.y`)."""
     if not (np.array_equal(case.G, networks.G_pre) and np.array_equal(case.B, networks.B_pre)):
         raise ValueError(f"case {case.name!r}: its network is not the pre-fault network of "
                          f"{networks.contingency.name!r}")
     name = networks.contingency.name
+    network = case.network
+    ties = tuple(complex(x) for x in np.asarray(network.y)) if isinstance(network, SparseNetwork) else None
     fault = Fault(name=name, G_on=_matrix(networks.G_on), B_on=_matrix(networks.B_on),
-                  G_post=_matrix(networks.G_post), B_post=_matrix(networks.B_post))
+                  G_post=_matrix(networks.G_post), B_post=_matrix(networks.B_post), y=ties)
     return dataclasses.replace(
         case, name=f"{case.name}-{name}", t_final=t_final, p1_min=clearing_times[0], p1_max=clearing_times[1],
         fault=fault, network=None, source=f"{case.source}; fault: {name} (systems.faults.CONTINGENCIES)")

@@ -45,6 +45,8 @@ def bad_values(description: str) -> list[Any]:
         values.append(None)
     if description.endswith("a positive finite number"):
         values += BAD_NUMBERS
+    elif description.endswith("a finite number >= 0"):
+        values += [v for v in BAD_NUMBERS if v != 0.0]
     elif description.endswith("a number in (0, 1]"):
         values += [*BAD_NUMBERS, 1.5, 2]
     elif (low := re.search(r"an integer >= (\d+)$", description)) is not None:

@@ -49,7 +49,9 @@ from systems.faults import FAULT_CASES
 # units added to the full run, every other entry as it was; and when pinnsim joined: likewise (both re-recorded by
 # `tests/record_plan_before.py NAME`, which asserts it); and when make bench left torch-pinn out on
 # the fault cases (`Settings.fault_omit_solvers`): those entries skipped, their fits gone, every
-# other entry as it was (checked when recorded).
+# other entry as it was (checked when recorded); and when pinnsim's `faults` config (made for fault
+# cases, for large systems) joined: its units added to the full run, every other entry as it was (by
+# `tests/record_plan_before.py pinnsim faults`).
 BEFORE = json.loads((Path(__file__).parent / "data" / "plan_before.json").read_text())
 
 RUNS = {

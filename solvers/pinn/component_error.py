@@ -10,10 +10,11 @@ whose exact trajectory takes an interval's inputs out of the box (a slip beyond 
 outside the step's domain: counted, not measured.
 
     python -m solvers.pinn.component_error --out results/pinnsim-component [--samples 400] [--seed 7]
-        [--option KEY=VALUE ...]
+        [--config faults] [--option KEY=VALUE ...]
 
 writes one row per time bin (`component_error.csv`) of the `pinnsim` network of the default options
-(or of those `--option` sets, e.g. `--option rate_weight=0.2`), loaded or trained as `fit` does.
+(or of the config's, e.g. "faults" on the default case's fault case, or of those `--option` sets,
+e.g. `--option rate_weight=0.2`), loaded or trained as `fit` does.
 """
 
 from __future__ import annotations
@@ -123,18 +124,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--samples", type=int, default=400)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--h", type=float, default=0.25)
-    parser.add_argument("--case", default="wscc9", help="any case pinnsim takes: the network does not depend on it")
+    parser.add_argument("--case", default=None, help="any case the config takes (the network does not depend "
+                        "on it; default wscc9, or its fault case for a config made for fault cases)")
+    parser.add_argument("--config", default="default", help="a pinnsim config (its domain and options)")
     parser.add_argument("--option", type=_option, action="append", default=[], metavar="KEY=VALUE",
                         help="a pinnsim option of the network measured (repeatable), e.g. rate_weight=0.2")
     args = parser.parse_args(argv)
     from solvers import make_solver
     from solvers.pinn.pinnsim import PinnSim
+    from systems.cases import FAULT_SCENARIO, STEP_SCENARIO
+    from systems.faults import FAULT_CASES
 
     options = dict(args.option)
     if "h" in options:
         parser.error("the step is --h, not --option h=...")
     try:
-        solver = make_solver("pinnsim", args.case, **options, h=args.h)
+        scenario = FAULT_SCENARIO if PinnSim.CASE_SCENARIOS.get(args.config) == {FAULT_SCENARIO} else STEP_SCENARIO
+        case = args.case or ("wscc9" if scenario == STEP_SCENARIO else FAULT_CASES["wscc9"][0])
+        solver = make_solver("pinnsim", case, args.config, **options, h=args.h)
     except (ValueError, RuntimeError) as exc:  # RuntimeError: JAX not installed (SolverUnavailable)
         parser.error(str(exc))
     assert isinstance(solver, PinnSim)
@@ -148,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     info = {key: value for key, value in result.items() if key != "rows"}
     info.update({"command": " ".join(["python -m solvers.pinn.component_error", *(argv or sys.argv[1:])]),
                  "fit_message": report.message, "component_record": solver.component.record,
-                 "options": {k: v for k, v in solver.options.items()}})
+                 "config": args.config, "options": {k: v for k, v in solver.options.items()}})
     (args.out / "component_error.json").write_text(json.dumps(info, indent=1, default=str) + "\n")
     for row in result["rows"]:
         print(row)

@@ -8,6 +8,12 @@ budget), not on the case: `fit` loads it from `component_dir` when a network of 
 trained before (its training seconds in the fit message), else trains and stores it there. A case
 whose machines fall outside the trained domain (mu, kappa or p on the machine's own beta = E / x'd)
 is refused when the adapter is built, naming the parameter.
+
+A fault case (`systems.cases.Fault`, P1 the clearing time t_c s) runs on the fault-on and
+post-fault networks' impedances from their reduced forms and the tie admittances the fault keeps
+(`solvers.pinn.simulator_faults`), with steps whose edges fall on 0 and t_c; the config "faults"
+trains the network on a domain that holds a faulted network's terminal voltages and its swings (the
+default domain's v0 >= 0.85 p.u. does not: such a case is refused there when built).
 """
 
 from __future__ import annotations
@@ -25,18 +31,31 @@ from threadpoolctl import threadpool_limits
 
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, SolveError
 from solvers.identification import Estimate
-from solvers.options import NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
+from solvers.options import NonNegativeFloat, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
 from solvers.pinn.component import INPUTS, Component, Domain, train
-from solvers.pinn.simulator import impedance, query_function, simulate_function
+from solvers.pinn.simulator import query_function, simulate_function
+from solvers.pinn.simulator_faults import (
+    POST_FAULT,
+    Schedule,
+    fault_schedule,
+    impedances,
+    tie_admittances,
+    uniform_schedule,
+)
 from solvers.pinn.simulator_newton import Newton
 from solvers.threads import configure_threads
-from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
-from systems.sparse_network import SparseNetwork
+from systems.cases import FAULT_SCENARIO, NETWORK, STEP_SCENARIO, Case, Observations
 
 __all__ = ["H_MAX", "STEP_SWEEP", "PinnSim", "PinnSimOptions", "machine_parameters"]
 
 H_MAX = 0.25  # s: the longest step; the component is tested over a step of this length
 STEP_SWEEP = (0.25, 0.1, 0.05, 0.025, 0.01)  # s: the work-precision sweep of h, coarsest first
+# The config "faults": the component's domain widened for a fault case (`Domain`'s fields of the
+# options below): a terminal voltage down to 0 p.u. (a machine at or next to the faulted bus), the
+# terminal angle of a machine next to the fault accelerating with it (theta2), and the larger slips
+# and voltage rates of the fault-on and post-fault swings of a stable clearing (v1_max - 2 v2_max
+# H_MAX = 0.5 p.u./s: the one-step error's test set, `component_error`, keeps its |v1| below it).
+FAULT_DOMAIN = {"v0_min": 0.0, "v0_max": 1.2, "slip_max": 6.0, "theta2_max": 30.0, "v1_max": 2.0, "v2_max": 3.0}
 
 
 class PinnSimOptions(OptionSchema):
@@ -46,7 +65,8 @@ class PinnSimOptions(OptionSchema):
     matrix formed, O((4 n)^3) an iteration) or "matrix-free" (CGLS with products by the network's
     impedance, preconditioned per machine, to a normal residual measure <= cg_tol within max_cg
     iterations; `solvers.pinn.simulator_newton.cgls`). The component network: net_h (s) its time
-    range, hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
+    range, its domain (`Domain`: |slip| <= slip_max rad/s, |theta2| <= theta2_max rad/s^2, v0 in
+    [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
     each (angles, and speeds weighted by `rate_weight`, s) and `n_f` collocation points of the
     equation weighted by `physics_weight` (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
     component_dir: where trained networks are kept (None: train every fit)."""
@@ -59,6 +79,12 @@ class PinnSimOptions(OptionSchema):
     cg_tol: PositiveFloat = 1e-12
     max_cg: PositiveInt = 200
     net_h: PositiveFloat = 0.05
+    slip_max: PositiveFloat = Domain.slip
+    theta2_max: PositiveFloat = Domain.theta2
+    v0_min: NonNegativeFloat = Domain.v0[0]
+    v0_max: PositiveFloat = Domain.v0[1]
+    v1_max: PositiveFloat = Domain.v1
+    v2_max: PositiveFloat = Domain.v2
     hidden_layers: PositiveInt = 2
     width: PositiveInt = 24
     trajectories: PositiveInt = 1000
@@ -81,10 +107,9 @@ def _bucket(count: int) -> int:
 
 def machine_parameters(case: Case) -> dict[str, np.ndarray]:
     """Each machine on its own beta = E |y| (p.u.): mu = m / beta (s^2/rad), kappa = d / beta (s/rad),
-    beta, and w = y E (complex p.u.), from the case's carried network."""
-    network = case.network
-    assert isinstance(network, SparseNetwork)
-    y = np.asarray(network.y, np.complex128)
+    beta, and w = y E (complex p.u.), y its tie admittance (`tie_admittances`)."""
+    y = tie_admittances(case)
+    assert y is not None
     E = np.asarray(case.E, np.float64)
     beta = E * np.abs(y)
     return {"mu": np.asarray(case.m) / beta, "kappa": np.asarray(case.d) / beta, "beta": beta, "w": y * E}
@@ -92,19 +117,22 @@ def machine_parameters(case: Case) -> dict[str, np.ndarray]:
 
 class PinnSim(AbstractSolver):
     """PINNSim on JAX, float64: each machine a component PINN, the network solved at each step of h
-    by Gauss-Newton on its voltage polynomials. Network step cases with a carried network only.
-    Shapes as the contract: (len(P1), len(t), n) and (n_s, n)."""
+    by Gauss-Newton on its voltage polynomials. Network step cases with a carried network, and (config
+    "faults") fault cases that keep their machines' tie admittances. Shapes as the contract:
+    (len(P1), len(t), n) and (n_s, n)."""
 
     name: ClassVar[str] = "pinnsim"
     SCHEMA = PinnSimOptions
-    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}}
-    CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {"default": frozenset({NETWORK})}
-    CASE_SCENARIOS: ClassVar[dict[str, frozenset]] = {"default": frozenset({STEP_SCENARIO})}
-    # training takes minutes: make bench leaves it out unless named, as the other large-system configs
-    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {"default": frozenset({LARGE_SYSTEMS})}
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}, "faults": FAULT_DOMAIN}
+    CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {config: frozenset({NETWORK}) for config in CONFIGS}
+    CASE_SCENARIOS: ClassVar[dict[str, frozenset]] = {"default": frozenset({STEP_SCENARIO}),
+                                                      "faults": frozenset({FAULT_SCENARIO})}
+    # training takes minutes: make bench leaves them out unless named, as the other large-system configs
+    CONFIG_MARKS: ClassVar[dict[str, frozenset[str]]] = {config: frozenset({LARGE_SYSTEMS}) for config in CONFIGS}
     trains: ClassVar[bool] = True
     trained_per_case: ClassVar[bool] = False  # one component network serves every case
     identifies: ClassVar[bool] = False
+    handles_faults: ClassVar[bool] = True  # where the domain holds the faulted terminal voltages (`_check_fault`)
     takes_threads: ClassVar[bool] = True
     compiled: ClassVar[bool] = True
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads", "component_dir"})
@@ -119,10 +147,17 @@ class PinnSim(AbstractSolver):
             raise ValueError(f"{self.name}: option h={options['h']!r} s is outside (0, h_max = {H_MAX}] s")
         if options["collocation"] < 2:
             raise ValueError(f"{self.name}: option collocation must be at least 2 (4 n unknowns, 2 n equations a point)")
-        if case.kind != NETWORK or case.network is None:
-            raise ValueError(f"{self.name} is made for multi-machine cases that carry their network; case "
-                             f"{case.name!r} is a {case.kind} case" + ("" if case.network is not None else " without one"))
-        self.domain = Domain(h=options["net_h"])
+        if case.kind != NETWORK or tie_admittances(case) is None:
+            raise ValueError(f"{self.name} is made for multi-machine cases that carry their network (a fault case: "
+                             f"its machines' tie admittances); case {case.name!r} is a {case.kind} case"
+                             + ("" if tie_admittances(case) is not None else " without one"))
+        if not options["v0_min"] < options["v0_max"]:
+            raise ValueError(f"{self.name}: options v0_min={options['v0_min']!r} and v0_max={options['v0_max']!r} p.u. "
+                             "are no range")
+        self.domain = Domain(h=options["net_h"], slip=options["slip_max"], theta2=options["theta2_max"],
+                             v0=(options["v0_min"], options["v0_max"]), v1=options["v1_max"], v2=options["v2_max"])
+        if case.fault is not None:
+            self._check_fault()
         params = machine_parameters(case)
         P = case.powers(np.array([case.p1_min, case.p1_max]))
         checks = {"mu": params["mu"][None], "kappa": params["kappa"][None], "p": P / params["beta"]}  # (rows, n)
@@ -134,6 +169,17 @@ class PinnSim(AbstractSolver):
                 raise ValueError(f"{self.name}: case {case.name!r} machine {k + 1} has {name} in "
                                  f"[{values[:, k].min():.4g}, {values[:, k].max():.4g}], outside the trained domain "
                                  f"[{low}, {high}]")
+
+    def _check_fault(self) -> None:
+        """A fault case whose fault-on terminal voltages at t = 0 (from the equilibrium) fall outside
+        the domain's v0 is refused here, naming the config that trains for them."""
+        case, (low, high) = self.case, self.domain.v0
+        w = machine_parameters(case)["w"]
+        v = np.abs(impedances(case)[0] @ (w * np.exp(1j * np.asarray(case.delta0))))
+        if v.min() < low or v.max() > high:
+            raise ValueError(f"{self.name}: case {case.name!r} has fault-on terminal voltages in [{v.min():.4g}, "
+                             f"{v.max():.4g}] p.u. at t = 0, outside the trained domain's v0 [{low}, {high}] p.u.; "
+                             f"config 'faults' trains a domain for fault cases")
 
     def _training(self) -> dict[str, Any]:
         keys = ("net_h", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
@@ -177,66 +223,90 @@ class PinnSim(AbstractSolver):
         with jax.enable_x64(True):
             self._theta = jnp.asarray(component.theta)
             self._machines = {"mu": jnp.asarray(params["mu"]), "kappa": jnp.asarray(params["kappa"]),
-                              "w": jnp.asarray(params["w"]), "Z": jnp.asarray(impedance(self.case.network))}
+                              "w": jnp.asarray(params["w"]), "Z": jnp.asarray(impedances(self.case))}
         self._grid, self._points = query_function(component, self.options["h"])
         self._simulate(self.options["h"], np.array([self.case.p1_max]), check=False)  # compile one shape
         record = component.record
         return FitReport(seconds=0.0, iterations=int(record.get("iterations", 0)), loss=float(record.get("loss", np.nan)),
                          message="; ".join(filter(None, (threads, how))))
 
-    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int]:
-        """(p, starts, coef, the last step simulated) of every P1 over ceil(t_max / h) steps;
-        SolveError for a CG or Newton failure or a machine that leaves the trained domain, naming
-        the step and P1. One compiled function a padded count of P1 (`_bucket`) serves every number
-        of steps up to the horizon."""
-        h, options, case = self.options["h"], self.options, self.case
-        steps = max(1, int(np.ceil(t_max / h - 1e-9)))
-        run = simulate_function(self.component, h, max(steps, int(np.ceil(case.t_final / h - 1e-9))),
-                                options["collocation"], options["max_newton"], options["newton_tol"], options["newton"],
-                                options["cg_tol"], options["max_cg"])
+    def _schedule(self, t_max: float, P1: np.ndarray) -> Schedule:
+        """The steps of every P1 (padded) to at least t_max and the horizon: h each on a step case;
+        on a fault case aligned with 0 and each t_c, counts fixed by the case's range of t_c (and
+        any t_c or t beyond it) so that a query in the range compiles once (`fault_schedule`)."""
+        h, case = self.options["h"], self.case
+        t_end = max(case.t_final, t_max)
+        if case.fault is None:
+            return uniform_schedule(P1.size, h, max(1, int(np.ceil(t_end / h - 1e-9))))
+        return fault_schedule(P1, h, t_end, max(case.p1_max, float(P1.max())), min(case.p1_min, float(P1.min())))
+
+    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int, np.ndarray]:
+        """(p, starts, coef, the last step simulated, the steps' edges (n_P padded, K + 1) s) of every
+        P1 over the steps that reach t_max (`_schedule`); SolveError for a CG or Newton failure or a
+        machine that leaves the trained domain, naming the step, its start and phase, and P1. One
+        compiled function a padded count of P1 (`_bucket`) serves every number of steps up to the
+        horizon."""
+        options, case = self.options, self.case
         padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
+        schedule = self._schedule(t_max, padded)
+        steps = schedule.steps_to(t_max, options["h"])
+        run = simulate_function(self.component, options["h"], schedule.lengths.shape[1], options["collocation"],
+                                options["max_newton"], options["newton_tol"], options["newton"], options["cg_tol"],
+                                options["max_cg"])
         p = case.powers(padded) / self._beta
         with jax.enable_x64(True):
             p_j = jnp.asarray(p)
             starts, coef, iterations, size, excess, column, cg, cg_residual = run(
-                self._theta, self._machines, p_j, jnp.asarray(case.delta0), jnp.asarray(case.omega0), steps)
+                self._theta, self._machines, p_j, jnp.asarray(case.delta0), jnp.asarray(case.omega0), steps,
+                jnp.asarray(schedule.lengths), jnp.asarray(schedule.phase))
         size, excess = np.asarray(size)[:P1.size, :steps], np.asarray(excess)[:P1.size, :steps]
         newton = np.asarray(iterations)[:P1.size, :steps]
         cg, cg_residual = np.asarray(cg)[:P1.size, :steps], np.asarray(cg_residual)[:P1.size, :steps]
         self.stats = {"steps": steps, "newton_mean": float(newton.mean()), "newton_max": int(newton.max()),
                       "cg_mean": float(cg.mean()), "cg_max": int(cg.max())}  # CG: a step's sum over its Newton
-        if not check:
-            return p_j, starts, coef, steps - 1
-        unsolved = ~(cg_residual <= options["cg_tol"])
-        if options["newton"] == "matrix-free" and unsolved.any():
-            i, k = np.argwhere(unsolved)[0]
-            raise SolveError(f"{self.name}: CG did not converge at step {k + 1} (t = {k * h:g} s) for P1 = "
-                             f"{float(P1[i])!r} within max_cg = {options['max_cg']} iterations: relative normal "
-                             f"residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
-        failed = ~(size <= options["newton_tol"])
-        if failed.any():
-            i, k = np.argwhere(failed)[0]
-            raise SolveError(f"{self.name}: Gauss-Newton did not converge at step {k + 1} (t = {k * h:g} s) for P1 = "
-                             f"{float(P1[i])!r} after {int(np.asarray(iterations)[i, k])} iterations: last update "
-                             f"{size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")
-        if (excess > 0).any():
-            i, k = np.argwhere(excess > 0)[0]
-            raise SolveError(f"{self.name}: at step {k + 1} (t = {k * h:g} s) for P1 = {float(P1[i])!r} a machine's "
-                             f"{INPUTS[int(np.asarray(column)[i, k])]} leaves the component's trained domain")
-        return p_j, starts, coef, steps - 1
+        if check:
+            self._check(P1, schedule, np.asarray(iterations), size, excess, np.asarray(column), cg_residual)
+        return p_j, starts, coef, steps - 1, schedule.edges
+
+    def _check(self, P1: np.ndarray, schedule: Schedule, iterations: np.ndarray, size: np.ndarray,
+               excess: np.ndarray, column: np.ndarray, cg_residual: np.ndarray) -> None:
+        """The one-line SolveError of the first failed step (`_simulate`) of the first P1 with one, if
+        any: its CG, else its Newton, else a machine out of the domain."""
+        options, symbol = self.options, self.case.scenario.symbol
+
+        def where(i: int, k: int) -> str:
+            phase = "" if self.case.fault is None else \
+                (" post-fault" if schedule.phase[i, k] == POST_FAULT else " fault-on")
+            return f"at{phase} step {k + 1} (t = {schedule.edges[i, k]:g} s) for {symbol} = {float(P1[i])!r}"
+
+        unsolved = ~(cg_residual <= options["cg_tol"]) & (options["newton"] == "matrix-free")
+        failed, outside = ~(size <= options["newton_tol"]), excess > 0
+        bad = unsolved | failed | outside
+        if not bad.any():
+            return
+        i, k = np.argwhere(bad)[0]  # the first P1 that fails, at its first failed step
+        if unsolved[i, k]:
+            raise SolveError(f"{self.name}: CG did not converge {where(i, k)} within max_cg = {options['max_cg']} "
+                             f"iterations: relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
+        if failed[i, k]:
+            raise SolveError(f"{self.name}: Gauss-Newton did not converge {where(i, k)} after {int(iterations[i, k])} "
+                             f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")
+        raise SolveError(f"{self.name}: {where(i, k)} a machine's {INPUTS[int(column[i, k])]} leaves the "
+                         "component's trained domain")
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        p, starts, coef, last = self._simulate(float(t.max()), P1)
+        p, starts, coef, last, edges = self._simulate(float(t.max()), P1)
         with jax.enable_x64(True):
-            both = np.asarray(self._grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(t)))
+            both = np.asarray(self._grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
+                                         jnp.asarray(t)))
         return both[0, :P1.size], both[1, :P1.size]
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         values, which = np.unique(P1, return_inverse=True)
-        p, starts, coef, last = self._simulate(float(t.max()), values)
+        p, starts, coef, last, edges = self._simulate(float(t.max()), values)
         with jax.enable_x64(True):
-            both = np.asarray(self._points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(which),
-                                           jnp.asarray(t)))
+            both = np.asarray(self._points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
+                                           jnp.asarray(which), jnp.asarray(t)))
         return both[0], both[1]
 
     def _identify(self, obs: Observations) -> Estimate:

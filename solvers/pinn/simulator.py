@@ -63,7 +63,7 @@ def _inputs(coef: Any, mu: Any, kappa: Any, p: Any, delta: Any, omega: Any, ts: 
     return jnp.stack([delta - th, omega - th_rate, coef[2], v, v_rate, coef[5], mu, kappa, p - kappa * th_rate])
 
 
-def chain(component: Component, count: int, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any,
+def chain(component: Component, count: int, sub: Any, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any,
            delta0: Any, omega0: Any) -> tuple[Any, Any]:
     """One machine: (starts (count + 1, 2): (delta, omega) at the interval edges, inputs (count, 9))."""
     sizes, domain = component.sizes, component.domain
@@ -80,14 +80,15 @@ def chain(component: Component, count: int, sub: float, theta: Any, coef: Any, m
     return jnp.concatenate([jnp.stack([delta0, omega0])[None], ends]), xs
 
 
-def _index(t: Any, length: float, last: Any) -> Any:
+def _index(t: Any, length: Any, last: Any) -> Any:
     """The interval of length `length` that holds t, in [0, last] (int32): a time within 1e-9 of an
     edge belongs to the later interval (XLA's fused arithmetic rounds t / length either side of an
-    integer otherwise, and the state on an edge is the same from both sides)."""
-    return jnp.clip(jnp.floor(t / length + 1e-9), 0, last).astype(jnp.int32)
+    integer otherwise, and the state on an edge is the same from both sides). A step of length 0 (a
+    fault cleared at t_c = 0 has an empty fault-on phase) holds only its start."""
+    return jnp.clip(jnp.floor(t / jnp.maximum(length, 1e-300) + 1e-9), 0, last).astype(jnp.int32)
 
 
-def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any, starts: Any,
+def state_at(component: Component, sub: Any, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any, starts: Any,
         t: Any) -> Any:
     """(delta, omega) of one machine at time t in [0, h] of the step from its interval starts."""
     i = _index(t, sub, starts.shape[0] - 2)
@@ -103,35 +104,38 @@ def state_at(component: Component, sub: float, theta: Any, coef: Any, mu: Any, k
 @functools.lru_cache(maxsize=8)
 def simulate_function(component: Component, h: float, max_steps: int, collocation: int, max_newton: int,
                       newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-12, max_cg: int = 200) -> Any:
-    """Jitted (theta, machines, p (n_P, n), delta0 (n,), omega0 (n,), steps) -> per P1 and step of
-    the first `steps` (<= max_steps; the rest zero): interval starts (n_P, max_steps, count + 1, n,
-    2), coefficients (n_P, max_steps, n, 6), Newton iterations and the last update's size
-    (n_P, max_steps), and the largest excursion of the network inputs out of the domain, in units
-    of the box's half-width (<= 0 inside), with its column of `INPUTS` (n_P, max_steps) each, then
-    the step's CG iterations (summed over its Newton iterations) and its CG solves' largest
-    relative normal residual (n_P, max_steps) each (0 for the dense Newton). newton, cg_tol,
-    max_cg: the update's linear solve (`simulator_newton.gauss_newton_update`).
-    machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n, n) complex p.u."""
-    count, sub = substeps(component, h)
-    nodes = h * np.arange(1, collocation + 1) / collocation
+    """Jitted (theta, machines, p (n_P, n), delta0 (n,), omega0 (n,), steps, lengths (n_P,
+    max_steps) s, phase (n_P, max_steps) int) -> per P1 and step of the first `steps` (<= max_steps;
+    the rest zero): interval starts (n_P, max_steps, count + 1, n, 2), coefficients (n_P, max_steps,
+    n, 6), Newton iterations and the last update's size (n_P, max_steps), and the largest excursion
+    of the network inputs out of the domain, in units of the box's half-width (<= 0 inside), with
+    its column of `INPUTS` (n_P, max_steps) each, then the step's CG iterations (summed over its
+    Newton iterations) and its CG solves' largest relative normal residual (n_P, max_steps) each (0
+    for the dense Newton). Step k of a P1 lasts lengths[k] <= h (a step case: h every step; a fault
+    case: `simulator_faults.schedule`) on the network Z[phase[k]]; a step starts from the network's
+    voltage for its start angles, so at a switch of Z the state is continuous and the voltage
+    jumps. newton, cg_tol, max_cg: the update's linear solve (`simulator_newton.gauss_newton_update`).
+    machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n_phase, n, n) complex p.u."""
+    count, _ = substeps(component, h)
+    fractions = np.arange(1, collocation + 1) / collocation
     lo, hi = component.domain.bounds()
     mid, half = jnp.asarray((lo + hi) / 2.0), jnp.asarray((hi - lo) / 2.0)
 
-    def one_p(theta, mach, p, delta0, omega0, steps):
-        mu, kappa, w, Z = mach["mu"], mach["kappa"], mach["w"], mach["Z"]
-        norms = column_norms(Z)
+    def one_p(theta, mach, p, delta0, omega0, steps, lengths, phase):
+        mu, kappa, w, Zs = mach["mu"], mach["kappa"], mach["w"], mach["Z"]
+        all_norms = jax.vmap(column_norms)(Zs)
 
-        def machine_nodes(c4, base, mu_k, kappa_k, p_k, d0, w0):
-            coef = jnp.concatenate([base[:1], c4[:2], base[1:], c4[2:]])
-            starts, _ = chain(component, count, sub, theta, coef, mu_k, kappa_k, p_k, d0, w0)
-            return jax.vmap(lambda t: state_at(component, sub, theta, coef, mu_k, kappa_k, p_k, starts, t)[0])(nodes)
-
-        def linearised(c4, base, delta_start, omega_start):
+        def linearised(c4, base, delta_start, omega_start, Z, nodes, sub):
             """The residual (n, s) complex and the Jacobian's two block-diagonal factors (n, s, 4) in
             the coefficients c4 (n, 4), own and g (`simulator_newton`): one pass through each
             machine's networks, its sensitivities (s, 4) by 4 forward tangents."""
-            def own_nodes(c, b, mu_k, kappa_k, p_k, d0, w0):
-                value, tangent = jax.linearize(lambda q: machine_nodes(q, b, mu_k, kappa_k, p_k, d0, w0), c)
+            def machine_nodes(c, b, mu_k, kappa_k, p_k, d0, w0):
+                coef = jnp.concatenate([b[:1], c[:2], b[1:], c[2:]])
+                starts, _ = chain(component, count, sub, theta, coef, mu_k, kappa_k, p_k, d0, w0)
+                return jax.vmap(lambda t: state_at(component, sub, theta, coef, mu_k, kappa_k, p_k, starts, t)[0])(nodes)
+
+            def own_nodes(c, *args):
+                value, tangent = jax.linearize(lambda q: machine_nodes(q, *args), c)
                 return value, jax.vmap(tangent, out_axes=-1)(jnp.eye(4))
 
             delta, sens = jax.vmap(own_nodes)(c4, base, mu, kappa, p, delta_start, omega_start)  # (n, s), (n, s, 4)
@@ -145,23 +149,28 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
 
         def step(k, carry):
             delta_start, omega_start, guess, out = carry
+            length, Z, norms = lengths[k], Zs[phase[k]], all_norms[phase[k]]
+            nodes, sub = length * fractions, length / count
             V0 = Z @ (w * jnp.exp(1j * delta_start))
             base = jnp.stack([jnp.angle(V0), jnp.abs(V0)], -1)  # (n, 2)
 
             def iterate(state):
                 c4, i, _, cg, cg_residual = state
-                r, own, g = linearised(c4, base, delta_start, omega_start)
+                r, own, g = linearised(c4, base, delta_start, omega_start, Z, nodes, sub)
                 update, cg_i, cg_rel = gauss_newton_update(newton, own, g, Z, norms, r, cg_tol, max_cg)
                 return c4 + update, i + 1, jnp.max(jnp.abs(update)), cg + cg_i, jnp.maximum(cg_residual, cg_rel)
 
+            # a step of length 0 has nothing to solve (its state is its start)
             c4, iterations, size, cg, cg_residual = jax.lax.while_loop(
-                lambda s: (s[1] < max_newton) & (s[2] > newton_tol), iterate, (guess, 0, jnp.inf, 0, 0.0))
+                lambda s: (s[1] < max_newton) & (s[2] > newton_tol), iterate,
+                (guess, 0, jnp.where(length > 0.0, jnp.inf, 0.0), 0, 0.0))
             coef = jnp.concatenate([base[:, :1], c4[:, :2], base[:, 1:], c4[:, 2:]], -1)  # (n, 6)
             starts, xs = jax.vmap(lambda cf, m_k, k_k, p_k, d0, w0: chain(component, count, sub, theta, cf, m_k, k_k,
                                                                            p_k, d0, w0))(coef, mu, kappa, p,
                                                                                          delta_start, omega_start)
             excess = jnp.max((jnp.abs(xs[..., 1:] - mid[1:]) / half[1:] - 1.0).reshape(-1, 8), axis=0)
-            nxt = jnp.stack([c4[:, 0] + 2.0 * c4[:, 1] * h, c4[:, 1], c4[:, 2] + 2.0 * c4[:, 3] * h, c4[:, 3]], -1)
+            nxt = jnp.stack([c4[:, 0] + 2.0 * c4[:, 1] * length, c4[:, 1], c4[:, 2] + 2.0 * c4[:, 3] * length, c4[:, 3]],
+                            -1)
             values = (jnp.transpose(starts, (1, 0, 2)), coef, iterations, size, jnp.max(excess), jnp.argmax(excess) + 1,
                       cg, cg_residual)
             out = tuple(buffer.at[k].set(value) for buffer, value in zip(out, values))
@@ -174,32 +183,34 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
                    jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps))
         return jax.lax.fori_loop(0, steps, step, (delta0, omega0, first, buffers))[3]
 
-    return jax.jit(jax.vmap(one_p, (None, None, 0, None, None, None)))
+    return jax.jit(jax.vmap(one_p, (None, None, 0, None, None, None, 0, 0)))
 
 
 @functools.lru_cache(maxsize=8)
 def query_function(component: Component, h: float) -> Any:
-    """Jitted (grid, points): grid (theta, machines, p (n_P, n), starts, coef, last, t (n_t,)) ->
-    (2, n_P, n_t, n), delta and omega at the times t (s) from the simulated steps 0..last (a time
-    beyond them: the last step's networks); points (..., last, which (n_s,) int, t (n_s,)) ->
-    (2, n_s, n) at the pairs (P1 row which[i], t[i])."""
-    _, sub = substeps(component, h)
+    """Jitted (grid, points): grid (theta, machines, p (n_P, n), starts, coef, last, edges (n_P,
+    max_steps + 1) s, t (n_t,)) -> (2, n_P, n_t, n), delta and omega at the times t (s) from the
+    simulated steps 0..last, step k of a P1 on [edges[k], edges[k + 1]] (a time beyond them: the
+    last step's networks); points (..., last, edges, which (n_s,) int, t (n_s,)) -> (2, n_s, n) at
+    the pairs (P1 row which[i], t[i]). A time within 1e-9 h of a step's edge belongs to the later
+    step (`_index`'s rule; a step of length 0 holds no time)."""
+    count, _ = substeps(component, h)
 
-    def one(theta, mu, kappa, p, starts, coef, last, t):
-        i = _index(t, h, last)
-        local = t - i * h
+    def one(theta, mu, kappa, p, starts, coef, last, edges, t):
+        i = jnp.clip(jnp.searchsorted(edges[1:], t + 1e-9 * h, side="right"), 0, last)
+        sub = (edges[i + 1] - edges[i]) / count
+        local = t - edges[i]
         return jax.vmap(lambda m_k, k_k, p_k, s_k, c_k: state_at(component, sub, theta, c_k, m_k, k_k, p_k, s_k, local),
                         (0, 0, 0, 1, 0))(mu, kappa, p, starts[i], coef[i])  # (n, 2)
 
-    def grid(theta, mach, p, starts, coef, last, t):
-        per_p = jax.vmap(lambda pp, st, cf: jax.vmap(lambda s: one(theta, mach["mu"], mach["kappa"], pp, st, cf, last,
-                                                                   s))(t))
-        out = per_p(p, starts, coef)  # (n_P, n_t, n, 2)
+    def grid(theta, mach, p, starts, coef, last, edges, t):
+        per_p = jax.vmap(lambda pp, st, cf, ed: jax.vmap(lambda s: one(theta, mach["mu"], mach["kappa"], pp, st, cf,
+                                                                       last, ed, s))(t))
+        out = per_p(p, starts, coef, edges)  # (n_P, n_t, n, 2)
         return jnp.moveaxis(out, -1, 0)
 
-    def points(theta, mach, p, starts, coef, last, which, t):
+    def points(theta, mach, p, starts, coef, last, edges, which, t):
         return jnp.moveaxis(jax.vmap(lambda i, s: one(theta, mach["mu"], mach["kappa"], p[i], starts[i], coef[i], last,
-                                                      s))(which, t), -1, 0)  # (2, n_s, n)
+                                                      edges[i], s))(which, t), -1, 0)  # (2, n_s, n)
 
     return jax.jit(grid), jax.jit(points)
-

@@ -1,0 +1,158 @@
+"""pinnsim on fault cases: the terminals' impedance from a reduced network, the steps aligned with 0
+and t_c, and a tiny network (config "faults", the contract tests' budget) that answers a fault case
+in the contract's shapes, continuous at the switch; structure, not accuracy."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+pytest.importorskip("jax")
+pytest.importorskip("pandapower")
+
+from conftest import small_options
+from scipy.sparse.linalg import splu
+
+from solvers import make_solver
+from solvers.base import SolveError
+from solvers.pinn.component import INPUTS
+from solvers.pinn.pinnsim import FAULT_DOMAIN
+from solvers.pinn.simulator import impedance
+from solvers.pinn.simulator_faults import FAULT_ON, POST_FAULT, fault_schedule, impedances, reduced_impedance
+from systems.cases import CASES, case_record
+from systems.faults import FAULT_CASES
+from systems.network import reduce_to_machines
+
+SMALL = small_options("pinnsim")
+FAULT = FAULT_CASES["wscc9"][0]  # wscc9-bus8-line8-9
+
+
+@pytest.mark.parametrize("name", ["wscc9", "kundur4"])
+def test_the_impedance_from_the_reduced_network_is_the_sparse_one(name):
+    """Z = D^-1 - D^-1 Y_red D^-1 (D = diag(y)) is (Y_bb^-1) at the terminals, from the case's own
+    G, B; and so for the network with a bus grounded (a fault's, reduced as `systems.faults` does)."""
+    case = CASES[name]
+    network, y = case.network, np.asarray(case.network.y)
+    Z = impedance(network)
+    np.testing.assert_allclose(reduced_impedance(case.G, case.B, y), Z, rtol=0, atol=1e-10 * np.abs(Z).max())
+    Y, n, at = network.augmented(), case.n, np.asarray(network.at)
+    bus = int(np.setdiff1d(np.arange(network.n_buses), at)[0])  # a bus without a machine
+    keep = np.setdiff1d(np.arange(Y.shape[0]), [bus])
+    G_on, B_on = reduce_to_machines(Y[keep][:, keep], n)
+    rest = np.setdiff1d(np.arange(network.n_buses), [bus])  # the bus grounded: gone from Y_bb
+    rhs = np.zeros((rest.size, n), complex)
+    rhs[np.searchsorted(rest, at), np.arange(n)] = 1.0
+    sparse_on = splu(network.Y_bb[rest][:, rest].tocsc()).solve(rhs)[np.searchsorted(rest, at)]
+    np.testing.assert_allclose(reduced_impedance(G_on, B_on, y), sparse_on, rtol=0, atol=1e-10 * np.abs(Z).max())
+
+
+def test_a_machine_whose_terminal_is_faulted_sees_zero_voltage():
+    case = CASES["wscc9"]
+    network = case.network
+    Y, n = network.augmented(), case.n
+    keep = np.setdiff1d(np.arange(Y.shape[0]), [int(network.at[0])])  # generator 1's own bus grounded
+    Z_on = reduced_impedance(*reduce_to_machines(Y[keep][:, keep], n), np.asarray(network.y))
+    # its terminal voltage is 0 whatever the EMFs, and its EMF reaches no other terminal
+    assert max(np.abs(Z_on[0]).max(), np.abs(Z_on[:, 0]).max()) < 1e-12 * np.abs(Z_on).max()
+    assert np.abs(Z_on[1:, 1:]).min() > 0.0  # the others still see each other
+
+
+def test_a_fault_case_keeps_its_tie_admittances_out_of_its_record():
+    case, step = CASES[FAULT], CASES["wscc9"]
+    assert case.network is None and np.array_equal(np.asarray(case.fault.y), np.asarray(step.network.y))
+    assert "y" not in case_record(case)["fault"]
+    assert dataclasses.replace(case, fault=dataclasses.replace(case.fault, y=None)) == case
+    np.testing.assert_array_equal(impedances(case)[FAULT_ON], reduced_impedance(case.fault.G_on, case.fault.B_on,
+                                                                                 np.asarray(step.network.y)))
+
+
+def test_the_steps_end_on_each_clearing_time_and_none_is_longer_than_h():
+    t_c, h = np.array([0.05, 0.4, 0.17, 0.0]), 0.25
+    schedule = fault_schedule(t_c, h, 3.0, 0.4, 0.0)
+    k_on = 2  # ceil(0.4 / 0.25) fault-on steps for every t_c, ceil(3 / 0.25) = 12 post-fault ones
+    assert schedule.lengths.shape == schedule.phase.shape == (4, k_on + 12)
+    np.testing.assert_array_equal(schedule.edges[:, k_on], t_c)  # exactly on t_c
+    np.testing.assert_array_equal(schedule.edges[:, 0], 0.0)
+    np.testing.assert_allclose(schedule.edges[:, -1], 3.0, rtol=0, atol=1e-15)
+    assert (schedule.lengths <= h).all() and (schedule.lengths >= 0).all()
+    assert (schedule.phase[:, :k_on] == FAULT_ON).all() and (schedule.phase[:, k_on:] == POST_FAULT).all()
+    # to reach 0.17 s: t_c = 0.05 needs its first post-fault step (t_c = 0.4 its first fault-on one)
+    assert schedule.steps_to(0.17, h) == k_on + 1
+    assert schedule.steps_to(3.0, h) == k_on + 12
+    with pytest.raises(ValueError, match="clearing times"):
+        fault_schedule(np.array([0.5]), h, 3.0, 0.4, 0.05)
+
+
+def test_the_default_domain_refuses_a_fault_case_naming_the_config_that_holds_it():
+    with pytest.raises(ValueError, match=r"^pinnsim: case 'wscc9-bus8-line8-9' has fault-on terminal voltages in "
+                                         r"\[.*\] p\.u\. at t = 0, outside the trained domain's v0 \[0\.85, 1\.15\] "
+                                         r"p\.u\.; config 'faults' trains a domain for fault cases$"):
+        make_solver("pinnsim", FAULT)
+
+
+@pytest.mark.parametrize("h", [0.3, 1.0])
+def test_a_step_outside_the_trained_range_is_one_line_on_a_fault_case(h):
+    with pytest.raises(ValueError, match=r"^pinnsim: option h=.* s is outside \(0, h_max = 0.25\] s$"):
+        make_solver("pinnsim", FAULT, "faults", h=h)
+
+
+def test_the_faults_config_is_planned_on_fault_cases_only():
+    cls = type(make_solver("pinnsim", FAULT, "faults"))
+    case = CASES[FAULT]
+    assert cls.handles_faults and cls.made_for("faults", case.kind, case.scenario)
+    assert not cls.made_for("faults", case.kind) and not cls.made_for("default", case.kind, case.scenario)
+    assert make_solver("pinnsim", FAULT, "faults").domain.v0 == (FAULT_DOMAIN["v0_min"], FAULT_DOMAIN["v0_max"])
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    """pinnsim, config "faults", on the contract tests' budget (its network trained once, ~30 s,
+    then loaded from the default component_dir), fitted on wscc9's fault case."""
+    solver = make_solver("pinnsim", FAULT, "faults", **SMALL)
+    solver.fit()
+    return solver
+
+
+def test_a_fault_case_answers_in_the_contracts_shapes(fitted):
+    case = fitted.case
+    t, T_c = np.array([0.0, 0.1, 1.0, 2.5]), np.array([0.15, 0.1])
+    traj = fitted.solve(t, T_c)
+    assert traj.delta.shape == traj.omega.shape == (2, 4, 3)
+    assert np.isfinite(traj.delta).all() and np.isfinite(traj.omega).all()
+    np.testing.assert_allclose(traj.delta[:, 0], np.tile(case.delta0, (2, 1)), atol=1e-12)
+    points = fitted.solve_points(np.array([1.0, 0.1]), T_c)
+    assert points.delta.shape == points.omega.shape == (2, 3)
+    np.testing.assert_allclose(points.delta, [traj.delta[0, 2], traj.delta[1, 1]], atol=1e-10)
+
+
+def test_the_state_is_continuous_at_the_clearing_time_on_a_step_edge(fitted):
+    """The machines' angle and speed carry over t_c (the voltage jumps there: the next step starts
+    from the post-fault network's), and t_c is the edge of a step of each clearing time's query."""
+    for t_c in (0.1, 0.15):
+        _, _, _, _, edges = fitted._simulate(t_c + 0.5, np.array([t_c]))
+        assert t_c in edges[0]
+        near = fitted.solve(np.array([t_c - 1e-7, t_c, t_c + 1e-7]), t_c)
+        np.testing.assert_allclose(near.delta[0, 1:], near.delta[0, :2], rtol=0, atol=1e-5)  # |omega| < 100 rad/s
+        np.testing.assert_allclose(near.omega[0, 1:], near.omega[0, :2], rtol=0, atol=1e-3)
+
+
+def test_a_newton_failure_names_the_phase_the_step_and_t_c():
+    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, "max_newton": 1})
+    solver.fit()
+    with pytest.raises(SolveError, match=r"^pinnsim: Gauss-Newton did not converge at fault-on step 1 \(t = 0 s\) "
+                                         r"for t_c = 0\.1 after 1 iterations: last update .*$"):
+        solver.solve(np.array([0.0, 1.0]), 0.1)
+
+
+def test_a_machine_that_slips_out_of_the_domain_names_the_step_t_c_and_the_input(fitted):
+    """Past the reference CCT (`systems.stability.reference_cct`, inside the range) a machine slips
+    poles: its inputs leave any trained box, and the query is refused in one line naming the step,
+    its phase, t_c and the input (or the Newton that fails first there), never answered from outside
+    the domain."""
+    inputs = "|".join(INPUTS[1:])
+    with pytest.raises(SolveError, match=rf"^pinnsim: (Gauss-Newton did not converge )?at (fault-on|post-fault) step "
+                                         rf"\d+ \(t = [0-9.]+ s\) for t_c = 0\.35( a machine's ({inputs}) leaves the "
+                                         r"component's trained domain| after .*)$"):
+        fitted.solve(np.linspace(0.0, 3.0, 31), 0.35)
