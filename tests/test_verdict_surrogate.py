@@ -139,3 +139,17 @@ def test_rows_stored_under_another_interval_rule_are_restated_from_their_samples
     assert rows.loc[1, "label"] == CLASSICAL_FASTER and set(rows["interval"]) == {INTERVAL}
     current = pd.DataFrame([{**old, "interval": INTERVAL}])
     assert restated(current).loc[0, "label"] == PINN_FASTER  # stored under the current rule: as stored
+
+
+def test_restating_the_same_rows_again_reuses_their_intervals():
+    """One report restates the same stored rows several times: the second time takes each interval
+    from the first (the same samples give the same interval), with the same result."""
+    from harness.report.verdicts import _current_interval, restated
+
+    pinn, rival = [1e-3, 1.01e-3, 0.98e-3], [2e-3, 2.03e-3, 1.97e-3]
+    rows = pd.DataFrame([{"label": PINN_FASTER, "pinn_samples_s": pinn, "rival_samples_s": rival}])
+    first = restated(rows)
+    hits = _current_interval.cache_info().hits
+    again = restated(rows)
+    assert _current_interval.cache_info().hits == hits + 1
+    pd.testing.assert_frame_equal(first, again)
