@@ -139,3 +139,36 @@ def test_rows_stored_under_another_interval_rule_are_restated_from_their_samples
     assert rows.loc[1, "label"] == CLASSICAL_FASTER and set(rows["interval"]) == {INTERVAL}
     current = pd.DataFrame([{**old, "interval": INTERVAL}])
     assert restated(current).loc[0, "label"] == PINN_FASTER  # stored under the current rule: as stored
+
+
+def test_restating_the_same_rows_again_reuses_their_intervals():
+    """One report restates the same stored rows several times: the second time takes each interval
+    from the first (the same samples give the same interval), with the same result."""
+    from harness.report.verdicts import _current_interval, restated
+
+    pinn, rival = [1e-3, 1.01e-3, 0.98e-3], [2e-3, 2.03e-3, 1.97e-3]
+    rows = pd.DataFrame([{"label": PINN_FASTER, "pinn_samples_s": pinn, "rival_samples_s": rival}])
+    first = restated(rows)
+    hits = _current_interval.cache_info().hits
+    again = restated(rows)
+    assert _current_interval.cache_info().hits == hits + 1
+    pd.testing.assert_frame_equal(first, again)
+
+
+def test_the_verdict_csv_states_the_intervals_and_labels_the_tables_do(tmp_path):
+    """`verdict.csv` beside the tables: a row stored under another interval rule is written with
+    the interval and label the tables state (`restated`), not the stored ones."""
+    from harness.measure.paired import INTERVAL, ratio_interval
+    from harness.report.files import write_report
+
+    pinn, rival = [1e-3, 1.01e-3, 0.99e-3, 1.02e-3], [1.6e-3, 1.62e-3, 1.58e-3, 1.61e-3]
+    narrow = ratio_interval(pinn, rival, repeat=False)
+    row = {"suite": "verdict", "case": "smib-inference", "solver": "toy-pinn", "config": "default", "variant": "",
+           "seed": 0, "trains": True, "status": "ok", "query": "grid 100x201", "kind": "grid", "pinn_seed": 0,
+           "label": PINN_FASTER, "ratio": narrow[0], "ratio_low": narrow[1], "ratio_high": narrow[2],
+           "pinn_samples_s": pinn, "rival_samples_s": rival, "pinn_rel_l2_delta": 1e-3, "pinn_rel_l2_omega": 1e-3}
+    write_report([row], tmp_path, {"threads": 2}, plots=False)
+    csv = pd.read_csv(tmp_path / "verdict.csv")
+    _, low, high = ratio_interval(pinn, rival)
+    assert csv.loc[0, ["label", "interval"]].tolist() == [TIE, INTERVAL]
+    assert np.allclose(csv.loc[0, ["ratio_low", "ratio_high"]].astype(float), [low, high])

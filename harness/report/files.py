@@ -20,6 +20,7 @@ from harness.report.plots import SCALING_PLOTS
 from harness.report.scaling import scaling_frame
 from harness.report.step_claim import step_claim_markdown
 from harness.report.tables import build_tables
+from harness.report.verdicts import restated
 from solvers.atomic import atomic_write
 
 __all__ = ["write_report"]
@@ -28,12 +29,14 @@ TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref", "traj_
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
-    """Write `<suite>.csv` (tidy, one row per measurement, every case), `tables.md`, `tables.tex`,
+    """Write `<suite>.csv` (tidy, one row per measurement, every case; the verdicts' intervals and
+    labels under the current rule, `restated`), `tables.md`, `tables.tex`,
     the plots (of each case, `<plot>-<case>.png` when the run has several), `README.md` and
     `metadata.json` to `out_dir`, each atomically; return the Markdown."""
     out_dir = Path(out_dir)
     frames = suite_frames(rows)
     for suite, df in frames.items():
+        df = restated(df) if suite == "verdict" else df  # intervals and labels as the tables state them
         csv = df.drop(columns=[c for c in TRAJECTORY_COLUMNS if c in df])
         atomic_write(out_dir / f"{suite}.csv", csv.to_csv(index=False))
     sections = [(name, own, build_tables(own)) for name, own in case_sections(frames)]

@@ -12,6 +12,7 @@ and both fit seconds; rows without those columns give the tables they gave.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -94,6 +95,16 @@ def headline(v: pd.DataFrame) -> pd.Series:
     return v["query"].isin(HEADLINE) | (v["kind"] == "points batch")
 
 
+@functools.cache
+def _current_interval(pinn_s: tuple[float, ...], rival_s: tuple[float, ...]) -> tuple[float, float]:
+    """(low, high): the interval of paired samples (s) under the current rule (`ratio_interval`,
+    seeded: the same samples give the same interval), kept for the process, since one report states
+    the same rows several times (each case's table, the heat map, the index, the README's bullets;
+    `swingbench compare` each run's more than once)."""
+    _, low, high = ratio_interval(pinn_s, rival_s)
+    return low, high
+
+
 def restated(rows: pd.DataFrame) -> pd.DataFrame:
     """Verdict seed rows with each interval and label stated under the current rule (`INTERVAL`):
     a row stored under another (or, written before the rule was recorded, none) has them recomputed
@@ -109,7 +120,7 @@ def restated(rows: pd.DataFrame) -> pd.DataFrame:
             continue
         timed = stale & rows[pinn].map(lambda x: isinstance(x, list) and len(x) >= 2)
         for i in rows.index[timed]:
-            _, low, high = ratio_interval(rows.at[i, pinn], rows.at[i, rival])
+            low, high = _current_interval(tuple(rows.at[i, pinn]), tuple(rows.at[i, rival]))
             rows.loc[i, [f"{prefix}ratio_low", f"{prefix}ratio_high", f"{prefix}label"]] = [low, high, verdict_label(low, high)]
     return rows.assign(interval=INTERVAL)
 
