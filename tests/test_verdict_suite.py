@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.measure.paired import CLASSICAL_FASTER, NO_RIVAL, verdict_label
+from harness.measure.paired import CLASSICAL_FASTER, INTERVAL, NO_RIVAL, verdict_label
 from harness.report.verdicts import compare_runs, verdicts
 from harness.settings import QUICK
 from harness.suites import _matching
@@ -57,6 +57,7 @@ def test_every_query_and_seed_has_a_row_with_enough_paired_samples_an_interval_a
         assert r["ratio_low"] <= r["ratio"] <= r["ratio_high"]
         assert r["label"] == verdict_label(r["ratio_low"], r["ratio_high"])
         assert r["ratio"] == pytest.approx(np.median(r["rival_samples_s"]) / np.median(r["pinn_samples_s"]))
+        assert r["interval"] == INTERVAL  # the rule the interval was stated under
 
 
 @pytest.mark.slow

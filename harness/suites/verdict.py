@@ -165,7 +165,7 @@ def _side(rivals: Rivals, query: Query, delta: float, omega: float, gate: bool) 
 def _row(plan: dict, settings: Settings, rivals: Rivals, surrogates: Rivals | None = None) -> dict:
     """A verdict's row: the plan's base, the ODE rival's columns and, where the plan has one
     (`surrogates` given), the surrogate's (`_surrogate_columns`)."""
-    row = {**plan["base"], "rounds": settings.verdict_rounds, "gate": plan["gate"],
+    row = {**plan["base"], "rounds": settings.verdict_rounds, "gate": plan["gate"], "interval": INTERVAL,
            **_side_columns(plan, plan["gate"], settings, rivals, plan["query"])}
     if surrogates is None or "surrogate" not in plan:
         return row
@@ -193,7 +193,7 @@ def _side_columns(side: dict, gate: bool, settings: Settings, rivals: Rivals, qu
             "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
             "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(side["calls"]),
-            "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN, "interval": INTERVAL,
+            "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN,
             "label": verdict_label(low, high)}
 
 
@@ -207,7 +207,7 @@ def _surrogate_columns(side: dict, gate: bool, settings: Settings, surrogates: R
                 "surrogate_note": "; ".join(surrogates.absent) or "no classical surrogate made for this case"}
     columns = _side_columns(side, gate, settings, surrogates, query)
     renamed = {{"rival": "surrogate", "rivals_note": "surrogate_note"}.get(key, "surrogate_" + key.removeprefix("rival_")): value
-               for key, value in columns.items() if key not in ("run_to_run", "interval")}
+               for key, value in columns.items() if key != "run_to_run"}
     return {**renamed, "surrogate_fit_s": side["rival"].fit_s if side["rival"] is not None else math.nan}
 
 
