@@ -146,14 +146,19 @@ def step_claim_bullets(frames: dict[str, pd.DataFrame], threshold: float = COI_T
 
 def one_step_line(folder: Path) -> str:
     """One sentence of the component network's one-step error in delta from `folder`'s
-    `COMPONENT_CSV` (the largest median and the largest max over its bins of t, rad, and the span of
-    t), with the inputs measured (its JSON); "" without the CSV."""
+    `COMPONENT_CSV`: the median and max of its row over the whole span of t (rad), or without one
+    the largest median and max over its bins; with the inputs measured (its JSON); "" without the CSV."""
     csv = Path(folder) / COMPONENT_CSV
     if not csv.exists():
         return ""
     data = pd.read_csv(csv)
-    line = (f"The component network's one-step error in delta over t <= {fmt(data['t_to_s'].max())} s: median "
-            f"at most {fmt(data['delta_median_rad'].max())} rad in any bin of t, max {fmt(data['delta_max_rad'].max())} rad")
+    whole = data[(data["t_from_s"] == data["t_from_s"].min()) & (data["t_to_s"] == data["t_to_s"].max())]
+    over = f"The component network's one-step error in delta over t <= {fmt(data['t_to_s'].max())} s"
+    if len(whole):  # the CSV's row of the whole span: its own median and max
+        line = f"{over}: median {fmt(whole['delta_median_rad'].iloc[0])} rad, max {fmt(whole['delta_max_rad'].iloc[0])} rad"
+    else:
+        line = (f"{over}: median at most {fmt(data['delta_median_rad'].max())} rad in any bin of t, max "
+                f"{fmt(data['delta_max_rad'].max())} rad")
     record = csv.with_name("component_error.json")
     if record.exists():
         meta = json.loads(record.read_text(encoding="utf-8"))
