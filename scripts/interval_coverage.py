@@ -26,8 +26,8 @@ from pathlib import Path
 import pandas as pd
 
 from harness.measure.paired import INTERVAL, RUN_TO_RUN, ratio_interval, verdict_label
+from harness.report.comparison import AGREE, FLIP, compare_runs, run_to_run_sigma
 from harness.report.frames import suite_frames
-from harness.report.verdicts import AGREE, FLIP, compare_runs, run_to_run_sigma
 from harness.store import RowStore
 
 # rule name -> (run-to-run term, repeat): the interval of the ratio within one run, over runs, of a repeat run

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from harness.measure.paired import CLASSICAL_FASTER, INTERVAL, NO_RIVAL, verdict_label
-from harness.report.verdicts import compare_runs, verdicts
+from harness.report.comparison import compare_runs
+from harness.report.verdicts import verdicts
 from harness.settings import QUICK
 from harness.suites import _matching
 from harness.suites._matching import Rivals

@@ -114,8 +114,8 @@ def _block(frames_a: dict, frames_b: dict, sources: str, tables: bool = True) ->
     block); UsageError when they share neither."""
     import pandas as pd
 
+    from harness.report.comparison import compare_runs, compare_table
     from harness.report.labels import Labels
-    from harness.report.verdicts import compare_runs, compare_table
 
     frames = {suite: pd.concat([f[suite] for f in (frames_a, frames_b) if suite in f])
               for suite in {**frames_a, **frames_b}}
@@ -177,7 +177,7 @@ def _surrogates(both) -> str:
 def _agreement(agreement) -> str:
     """"N verdicts in both runs: a agree, f flip, t are a tie in one run and not in the other" of
     the column `agreement` of `compare_runs`."""
-    from harness.report.verdicts import AGREE, FLIP
+    from harness.report.comparison import AGREE, FLIP
 
     counts = agreement.value_counts()
     agree, flip = counts.get(AGREE, 0), counts.get(FLIP, 0)
@@ -195,7 +195,7 @@ def _sigma(frames_a: dict, frames_b: dict) -> str:
     """The run-to-run spread of the two runs (`run_to_run_sigma`) beside the one the intervals
     assume (`RUN_TO_RUN`): "" without seed rows timed in both."""
     from harness.measure.paired import RUN_TO_RUN
-    from harness.report.verdicts import run_to_run_sigma
+    from harness.report.comparison import run_to_run_sigma
 
     sigma, n = run_to_run_sigma(frames_a, frames_b)
     if not n:
@@ -206,7 +206,7 @@ def _sigma(frames_a: dict, frames_b: dict) -> str:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from harness.cli.readme import replace_section
-    from harness.report.verdicts import FLIP, compare_runs
+    from harness.report.comparison import FLIP, compare_runs
 
     start = args.update_readme.resolve().parent if args.update_readme else Path()
     frames_a, frames_b = _frames(args.run_a), _frames(args.run_b)

@@ -1,5 +1,5 @@
 """The verdict suite's rows -> the verdict of each case, PINN and query over its seeds, its tables
-and the comparison of two runs. Pure pandas, no measurement.
+(the comparison of two runs: `harness.report.comparison`). Pure pandas, no measurement.
 
 A verdict over seeds: "PINN faster" when every seed's label is (each seed against the rival matched
 to its own accuracy), "classical faster" when every seed's is (a seed that missed the accuracy
@@ -17,11 +17,9 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from harness.measure.paired import (
     CLASSICAL_FASTER,
-    CONFIDENCE,
     INTERVAL,
     NO_RIVAL,
     NOT_APPLICABLE,
@@ -35,12 +33,11 @@ from harness.report.format import fmt
 from harness.report.frames import label, ok
 from harness.report.ladder import GRID_QUERY, POINT_QUERY
 
-__all__ = ["AGREE", "FLIP", "HEADLINE", "RULE_SHORT", "RULE_SURROGATE", "compare_runs", "compare_table", "headline", "headline_table",
-           "restated", "run_to_run_sigma", "verdict_summary", "verdict_table", "verdicts"]
+__all__ = ["HEADLINE", "RULE_SHORT", "RULE_SURROGATE", "headline", "headline_table", "ratio_text", "restated",
+           "verdict_summary", "verdict_table", "verdicts"]
 
 # The README's queries: the paper's grid and single point, one trajectory, and the batches of points.
 HEADLINE = (GRID_QUERY, "1 trajectories x 201 times", POINT_QUERY)
-AGREE, FLIP, TIE_IN_ONE = "agree", "FLIP", "tie in one run"
 RULE = (f"Ratio: the rival's median time over the PINN's (> 1: the PINN is faster), from paired samples "
         f"taken interleaved in rounds minutes apart; the 95 % interval of a repeat run's ratio (paired bootstrap "
         f"and the spread between runs). A side is called "
@@ -153,7 +150,9 @@ def verdicts(frames: dict) -> pd.DataFrame:
     return pd.DataFrame(out).sort_values("_order").drop(columns="_order").reset_index(drop=True)
 
 
-def _ratio(row: pd.Series, suffix: str = "", prefix: str = "") -> str:
+def ratio_text(row: pd.Series, suffix: str = "", prefix: str = "") -> str:
+    """A verdict's ratio and interval as text, "2.5x [1.9, 3.2]" ("-" without one), from the columns
+    `prefix` + "ratio" / "ratio_low" / "ratio_high" + `suffix`."""
     ratio, low, high = (row[f"{prefix}{key}{suffix}"] for key in ("ratio", "ratio_low", "ratio_high"))
     return "-" if pd.isna(ratio) else f"{fmt(ratio, 2)}x [{fmt(low, 2)}, {fmt(high, 2)}]"
 
@@ -183,7 +182,7 @@ def _surrogate_cells(r: pd.Series) -> dict[str, str]:
         return {key: "-" for key in ("surrogate verdict", "surrogate ratio [95 % CI]", "surrogate",
                                      "fit s, PINN / surrogate")}
     return {"surrogate verdict": f"{r['surrogate verdict']} ({r['surrogate by seed']})",
-            "surrogate ratio [95 % CI]": _ratio(r, prefix="surrogate_"),
+            "surrogate ratio [95 % CI]": ratio_text(r, prefix="surrogate_"),
             "surrogate": r["surrogate"] or r["surrogate_note"],
             "fit s, PINN / surrogate": f"{fmt(r['pinn_fit_s'])} / {fmt(r['surrogate_fit_s'])}"}
 
@@ -196,7 +195,7 @@ def _table(v: pd.DataFrame, with_case: bool) -> pd.DataFrame:
     return pd.DataFrame([{**({"case": r["case"]} if with_case else {}), "query": r["query"], "PINN": r["pinn"],
                           "PINN query path": str(r["path"] or "").replace("query=", "") or "-",
                           "verdict": f"{r['verdict']} ({r['by seed']})",
-                          "ratio [95 % CI]": _ratio(r), **({"matched ratio": _matched(r)} if matched else {}), "PINN ms": _ms(r["pinn_median_s"]),
+                          "ratio [95 % CI]": ratio_text(r), **({"matched ratio": _matched(r)} if matched else {}), "PINN ms": _ms(r["pinn_median_s"]),
                           "rival": r["rival"] or r["note"], "rival ms": _ms(r["rival_median_s"]),
                           "rel. L2 angles / speeds, PINN": _errors(r, "pinn"), "rel. L2, rival": _errors(r, "rival"),
                           "samples": "-" if pd.isna(r["samples"]) else int(r["samples"]),
@@ -217,65 +216,6 @@ def headline_table(frames: dict) -> pd.DataFrame | None:
         return None
     v = v[headline(v)]
     return None if v.empty else _table(v, with_case=True)
-
-
-def compare_runs(frames_a: dict, frames_b: dict) -> pd.DataFrame:
-    """Every verdict of run A beside run B's of the same case, PINN and query: both labels,
-    ratios and intervals, and whether they agree (the same label), one is a tie (`TIE_IN_ONE`)
-    or they flip (opposite sides); where both runs have the classical surrogate's verdicts, the same
-    of those ("surrogate agreement", "" where one run has none)."""
-    a, b = verdicts(frames_a), verdicts(frames_b)
-    if a.empty or b.empty:
-        return pd.DataFrame()
-    both = a.merge(b, on=["case", "pinn", "query"], suffixes=(" A", " B"))
-    both = both.assign(agreement=[_agreement(la, lb) for la, lb in zip(both["verdict A"], both["verdict B"])])
-    if {"surrogate verdict A", "surrogate verdict B"} <= set(both.columns):
-        both["surrogate agreement"] = [_agreement(la, lb) if isinstance(la, str) and isinstance(lb, str) else ""
-                                       for la, lb in zip(both["surrogate verdict A"], both["surrogate verdict B"])]
-    return both
-
-
-def _agreement(label_a: str, label_b: str) -> str:
-    """`AGREE` (the same label), `FLIP` (opposite sides) or `TIE_IN_ONE`."""
-    if label_a == label_b:
-        return AGREE
-    return FLIP if {label_a, label_b} == {PINN_FASTER, CLASSICAL_FASTER} else TIE_IN_ONE
-
-
-def compare_table(frames_a: dict, frames_b: dict) -> pd.DataFrame:
-    """`compare_runs` as text: case, query, PINN, each run's verdict and ratio [95 % CI], agreement."""
-    c = compare_runs(frames_a, frames_b)
-    return pd.DataFrame([{"case": r["case"], "query": r["query"], "PINN": r["pinn"],
-                          "run A": f"{r['verdict A']}, {_ratio(r, ' A')}", "run B": f"{r['verdict B']}, {_ratio(r, ' B')}",
-                          "agreement": r["agreement"]} for _, r in c.iterrows()])
-
-
-def run_to_run_sigma(frames_a: dict, frames_b: dict) -> tuple[float, int]:
-    """(sigma, n): the standard deviation of log(ratio) from one run to the other beyond what each
-    run's paired samples show, from the n seed rows both runs timed (same case, PINN, query and
-    seed): with d the difference of the two log ratios and s_A, s_B the standard errors of each
-    within its run (the bootstrap alone, `ratio_interval(..., run_to_run=0)`, half its log width
-    over the normal quantile), E[d**2] = s_A**2 + s_B**2 + 2 sigma**2; sigma from the means, 0 when
-    the within-run spread explains all of it; (nan, 0) without such rows."""
-    z = float(stats.norm.ppf(0.5 + CONFIDENCE / 2))
-    key = ["case", "pinn", "query", "pinn_seed"]
-
-    def timed(frames: dict) -> pd.DataFrame:
-        rows = ok(frames.get("verdict"))
-        if rows.empty or "pinn_samples_s" not in rows:
-            return pd.DataFrame(columns=[*key, "log_ratio", "se"])
-        rows = rows[rows["pinn_samples_s"].map(lambda x: isinstance(x, list) and len(x) >= 2)]
-        intervals = [ratio_interval(p, r, run_to_run=0, repeat=False) for p, r in zip(rows["pinn_samples_s"], rows["rival_samples_s"])]
-        return pd.DataFrame({**{k: rows[k].to_numpy() for k in key[:-1] if k != "pinn"}, "pinn": label(rows).to_numpy(),
-                             "pinn_seed": rows["pinn_seed"].to_numpy(),
-                             "log_ratio": [math.log(r) for r, _, _ in intervals],
-                             "se": [math.log(high / low) / (2 * z) for _, low, high in intervals]})
-
-    both = timed(frames_a).merge(timed(frames_b), on=key, suffixes=("_a", "_b"))
-    if both.empty:
-        return math.nan, 0
-    excess = float(np.mean((both["log_ratio_a"] - both["log_ratio_b"]) ** 2) - np.mean(both["se_a"] ** 2 + both["se_b"] ** 2))
-    return math.sqrt(max(excess, 0.0) / 2), len(both)
 
 
 def _tally(g: pd.DataFrame, verdict: str, ratio: str, sides: tuple[tuple[str, str], ...]) -> list[str]:
