@@ -59,6 +59,21 @@ def test_a_machine_whose_terminal_is_faulted_sees_zero_voltage():
     assert np.abs(Z_on[1:, 1:]).min() > 0.0  # the others still see each other
 
 
+def test_a_fault_at_a_machines_terminal_is_refused_when_built():
+    """Its terminal voltage is 0, so its angle's coefficients drop out of the Gauss-Newton step
+    (a singular matrix: the first fault-on step's update is NaN): refused in one line, not solved."""
+    network, fault = CASES["wscc9"].network, CASES[FAULT]
+    Y = network.augmented()
+    keep = np.setdiff1d(np.arange(Y.shape[0]), [int(network.at[0])])  # generator 1's own bus grounded
+    G_on, B_on = reduce_to_machines(Y[keep][:, keep], fault.n)
+    case = dataclasses.replace(fault, name="wscc9-gen1-terminal", fault=dataclasses.replace(
+        fault.fault, name="gen1-terminal", G_on=tuple(map(tuple, G_on)), B_on=tuple(map(tuple, B_on))))
+    with pytest.raises(ValueError, match=r"^pinnsim: case 'wscc9-gen1-terminal' faults machine 0's terminal bus "
+                                         r"\(its voltage 0, its angle undetermined in the Gauss-Newton step\): "
+                                         r"not supported$"):
+        make_solver("pinnsim", case, "faults")
+
+
 def test_a_fault_case_keeps_its_tie_admittances_out_of_its_record():
     case, step = CASES[FAULT], CASES["wscc9"]
     assert case.network is None and np.array_equal(np.asarray(case.fault.y), np.asarray(step.network.y))

@@ -172,10 +172,14 @@ class PinnSim(AbstractSolver):
 
     def _check_fault(self) -> None:
         """A fault case whose fault-on terminal voltages at t = 0 (from the equilibrium) fall outside
-        the domain's v0 is refused here, naming the config that trains for them."""
+        the domain's v0 is refused here, naming the config that trains for them, and one that faults
+        a machine's own terminal bus (the Gauss-Newton matrix singular: that angle drops out)."""
         case, (low, high) = self.case, self.domain.v0
         w = machine_parameters(case)["w"]
         v = np.abs(impedances(case)[0] @ (w * np.exp(1j * np.asarray(case.delta0))))
+        if v.min() <= 1e-9 * v.max():
+            raise ValueError(f"{self.name}: case {case.name!r} faults machine {int(v.argmin())}'s terminal bus (its "
+                             "voltage 0, its angle undetermined in the Gauss-Newton step): not supported")
         if v.min() < low or v.max() > high:
             raise ValueError(f"{self.name}: case {case.name!r} has fault-on terminal voltages in [{v.min():.4g}, "
                              f"{v.max():.4g}] p.u. at t = 0, outside the trained domain's v0 [{low}, {high}] p.u.; "

@@ -11,7 +11,8 @@ network), so
     Z = D^-1 (D - Y_red) D^-1 = D^-1 - D^-1 Y_red D^-1,
 
 no inversion: the fault-on and post-fault Z from the case's own reduced networks. A machine whose
-terminal bus is the faulted one gets a zero row of the fault-on Z (its terminal voltage is 0).
+terminal bus is the faulted one gets a zero row of the fault-on Z (its terminal voltage is 0, its
+terminal angle undetermined: the adapter refuses such a case).
 
 The steps (`fault_schedule`): each clearing time t_c of a query splits [0, t_end] into K_on equal
 fault-on steps on [0, t_c] and K_post equal post-fault steps on [t_c, t_end], K_on and K_post fixed
