@@ -95,35 +95,26 @@ def _read_run(directory: Path) -> tuple[list[dict], dict]:
     return rows, meta
 
 
-def _at_scale(args: argparse.Namespace) -> int:
-    from harness.report.pages import at_scale_block
+def _readme_block(args: argparse.Namespace, flag: str) -> int:
+    """`--at-scale` (the verdict runs of every DIR) or `--step-claim` (one DIR's step sweeps): only
+    that generated block of the README the flag names, written from the folders' rows; a folder
+    whose rows cannot make it, or a README without its markers, is one line (UsageError)."""
+    from harness.report.pages import at_scale_block, step_claim_block
 
-    flag = "--at-scale"
-    around(args.at_scale, AT_SCALE_START, AT_SCALE_END, "report", flag)
+    if flag == "--at-scale":
+        readme, start, end = args.at_scale, AT_SCALE_START, AT_SCALE_END
+    else:
+        readme, start, end = args.step_claim, STEP_CLAIM_START, STEP_CLAIM_END
+        if len(args.directory) > 1:
+            raise UsageError(f"swingbench report: {flag}: one DIR (the run of the step sweeps)")
+    around(readme, start, end, "report", flag)
     runs = [(*_read_run(directory), directory) for directory in args.directory]
     try:
-        block = at_scale_block(runs, args.at_scale)
+        block = at_scale_block(runs, readme) if flag == "--at-scale" else step_claim_block(*runs[0], readme)
     except ValueError as exc:
         raise UsageError(f"swingbench report: {flag}: {exc}") from None
-    replace_section(args.at_scale, AT_SCALE_START, AT_SCALE_END, block, "report", flag)
-    print(f"[swingbench] {args.at_scale}: the at-scale verdicts of {len(runs)} run(s)")
-    return 0
-
-
-def _step_claim(args: argparse.Namespace) -> int:
-    from harness.report.pages import step_claim_block
-
-    flag = "--step-claim"
-    if len(args.directory) > 1:
-        raise UsageError(f"swingbench report: {flag}: one DIR (the run of the step sweeps)")
-    around(args.step_claim, STEP_CLAIM_START, STEP_CLAIM_END, "report", flag)
-    rows, meta = _read_run(args.directory[0])
-    try:
-        block = step_claim_block(rows, meta, args.directory[0], args.step_claim)
-    except ValueError as exc:
-        raise UsageError(f"swingbench report: {flag}: {exc}") from None
-    replace_section(args.step_claim, STEP_CLAIM_START, STEP_CLAIM_END, block, "report", flag)
-    print(f"[swingbench] {args.step_claim}: the step claim of {args.directory[0]}")
+    replace_section(readme, start, end, block, "report", flag)
+    print(f"[swingbench] {readme}: {flag.removeprefix('--')} block from {len(runs)} run(s)")
     return 0
 
 
@@ -135,7 +126,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         if args.update_readme or args.docs or len(blocks) > 1:
             raise UsageError(f"swingbench report: {blocks[0]} writes only its README block: leave out "
                              f"{', '.join(['--update-readme', '--docs', *blocks[1:]])}")
-        return _at_scale(args) if args.at_scale else _step_claim(args)
+        return _readme_block(args, blocks[0])
     if len(args.directory) > 1:
         raise UsageError("swingbench report: one DIR at a time (several only with --at-scale)")
     args.directory = args.directory[0]
