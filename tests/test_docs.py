@@ -109,6 +109,20 @@ def test_report_at_scale_writes_only_its_block_and_refuses_what_it_cannot_write(
         assert readme.read_text() == before
 
 
+def test_the_at_scale_block_states_a_shared_machine_once_and_differing_ones_per_run():
+    """Runs on the same machine, settings and libraries: their date and commit beside each answer and
+    the rest once; runs on different machines: each run's whole line beside its answer."""
+    folder = ROOT / "results" / "verdicts-case118"
+    rows = RowStore(folder, create=False).read().rows
+    meta = json.loads((folder / "metadata.json").read_text(encoding="utf-8"))
+    shared = at_scale_block([(rows, meta, folder), (rows, meta, folder)], ROOT / "README.md")
+    assert shared.count("Every run on ") == 1 and shared.count(f"commit {meta['commit']}.") == 2
+    assert "Run of" not in shared
+    other = {**meta, "cpu": "another CPU"}
+    apart = at_scale_block([(rows, meta, folder), (rows, other, folder)], ROOT / "README.md")
+    assert "Every run on " not in apart and apart.count("Run of ") == 2 and "on another CPU" in apart
+
+
 def test_the_readme_step_claim_is_what_the_report_writes_from_its_rows():
     """The README's step-claim block is, character for character, what `swingbench report DIR
     --step-claim README.md` writes from the folder it names: a bullet per case and the component
