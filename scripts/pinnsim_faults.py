@@ -1,6 +1,7 @@
-"""pinnsim (config "faults") on fault cases where the harness's suites cannot ask it: the accuracy
-and cct suites query clearing times on both sides of the CCT in one call, and past the CCT a
-machine slips poles, leaves any trained domain, and pinnsim refuses the whole call (SolveError).
+"""pinnsim (config "faults") on fault cases where the harness's accuracy suite cannot ask it: it
+queries clearing times on both sides of the CCT in one call, and past the CCT a machine slips
+poles, leaves any trained domain, and pinnsim refuses the whole call (SolveError). (The cct suite
+asks a refused batch again one clearing time at a time: `harness.suites.cct`.)
 
 Per case, on the standard grid (`systems.cases.standard_grid`: 100 clearing times x 201 times):
 the clearing times below the reference CCT (`systems.stability.reference_cct`) in one call (each

@@ -24,7 +24,7 @@ from harness.suites import SUITES
 from harness.suites.accuracy import COI_DELTA, accuracy, stability_classes
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from solvers import SOLVERS
-from solvers.base import AbstractSolver, FitReport
+from solvers.base import AbstractSolver, FitReport, SolveError
 from systems.cases import CASES, Case, standard_grid
 from systems.reference import STABILITY_CLASSES, STABLE_CLEARING, UNSTABLE_CLEARING, reference
 from systems.stability import ANGLE_LIMIT, reference_cct
@@ -76,6 +76,20 @@ class ShiftedSurrogate(AbstractSolver):
 
     def _identify(self, obs):
         raise NotImplementedError
+
+
+class RefusingSurrogate(ShiftedSurrogate):
+    """The same surrogate, refusing (SolveError, as pinnsim does when a machine leaves its trained
+    domain) every call that holds a clearing time in (t* + REFUSED[0], t* + REFUSED[1]] s."""
+
+    name: ClassVar[str] = "refusing-surrogate"
+    REFUSED: ClassVar[tuple[float, float]] = (0.0, 0.025)
+
+    def _solve(self, t, P1):
+        low, high = self._t_star + self.REFUSED[0], self._t_star + self.REFUSED[1]
+        if np.any((P1 > low) & (P1 <= high)):
+            raise SolveError(f"{self.name}: refused t_c in {P1}")
+        return super()._solve(t, P1)
 
 
 class StepsOnly(ReferenceFaults):
@@ -131,6 +145,31 @@ def test_a_range_without_the_cct_gives_no_cct_and_says_why():
         cct(_fitted(ReferenceFaults, late), late, SETTINGS)
     with pytest.raises(ValueError, match="'kundur4' is no fault case: it has no CCT"):
         cct(_fitted(ReferenceFaults, CASES["kundur4"]), CASES["kundur4"], SETTINGS)
+
+
+def test_refused_clearing_times_are_neither_side_and_leave_the_bracket_wide_where_they_fall():
+    """A refused batch is asked one clearing time at a time; the bracket runs from the last stable to
+    the first unstable clearing time over the refused ones between, a refused midpoint stops the
+    narrowing, and the row counts the refusals and says where the search stopped; refusals on the
+    whole unstable side leave no CCT."""
+    case = CASES[CASE]
+    t_star = reference_cct(case) + SHIFT_S
+    solver = _fitted(RefusingSurrogate, case)
+    found = grid_then_bisect(solver, 1e-2)
+    assert found.stable_s <= t_star < found.unstable_s and found.unstable_s > t_star + RefusingSurrogate.REFUSED[1]
+    assert found.unstable_s - found.stable_s > BRACKET_S and found.refused >= 3
+    assert found.note.startswith("refused t_c = ") and "the bracket left at" in found.note
+    (row,) = cct(solver, case, SETTINGS)
+    assert row["refused"] == found.refused and row["note"] == found.note and "traj_pred" not in row
+    assert abs(row["cct_error_s"]) < (row["unstable_s"] - row["stable_s"])
+
+    class RefusesUnstable(RefusingSurrogate):
+        REFUSED = (0.0, 1.0)
+
+    found = grid_then_bisect(_fitted(RefusesUnstable, case), 1e-2)
+    assert np.isnan(found.cct_s) and found.stable_s <= t_star and found.refused > 10
+    assert found.note.startswith("no clearing time judged unstable up to p1_max = 0.4 s; ")
+    assert bisect(_fitted(RefusesUnstable, case)).note.endswith("; 1 of 2 refused")
 
 
 def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():

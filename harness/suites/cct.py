@@ -15,7 +15,15 @@ reference integrator).
   single queries down to 1 ms (none when the grid is 1 ms apart).
 
 The CCT is the bracket's midpoint; a method whose trajectories are unstable at p1_min (or stable at
-p1_max) has no CCT inside the range (NaN, the row's `note` says which). The search is timed whole,
+p1_max) has no CCT inside the range (NaN, the row's `note` says which).
+
+An adapter may refuse a clearing time (`SolveError`: pinnsim, for one, when a machine leaves its
+network's trained domain or Gauss-Newton does not converge). A refused batch is asked again one
+clearing time at a time; a refused clearing time is neither stable nor unstable. The bracket is
+then [the last clearing time judged stable, the first judged unstable above it], refused ones
+inside it left alone; a refused bisection midpoint ends the narrowing, the bracket left wider than
+`BRACKET_S`. The row counts the refused clearing times (`refused`) and its `note` says where the
+search stopped and why; with no clearing time judged stable (or unstable) the CCT is NaN. The search is timed whole,
 warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
 `Settings.max_call_s` is timed once).
 
@@ -27,7 +35,6 @@ and the break-even, which needs the other adapters' searches, is computed by the
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +43,7 @@ from harness.measure.timing import time_call
 from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._seeds import seed_models
-from solvers.base import AbstractSolver
+from solvers.base import AbstractSolver, SolveError
 from systems.cases import Case
 from systems.model import relative_angles
 from systems.reference import reference
@@ -56,13 +63,15 @@ TRAJECTORY_EVERY = 2
 class Search:
     """The outcome of one CCT search: the final bracket [stable, unstable] of clearing times (s;
     NaN on the side the range does not reach), `solves` calls to `solve` holding `trajectories`
-    clearing times in all, and `note` ("" or why there is no CCT in the range)."""
+    clearing times in all, `note` ("" or why there is no CCT in the range, or why the bracket is
+    wider than `BRACKET_S`) and the clearing times the adapter refused (`refused`)."""
 
     stable_s: float
     unstable_s: float
     solves: int
     trajectories: int
     note: str = ""
+    refused: int = 0
 
     @property
     def cct_s(self) -> float:
@@ -76,44 +85,86 @@ def criterion_times(case: Case) -> np.ndarray:
     return np.linspace(0.0, case.t_final, round(case.t_final / CRITERION_DT_S) + 1)
 
 
-def _unstable(solver: AbstractSolver, t: np.ndarray, t_c: np.ndarray) -> np.ndarray:
-    """The criterion on `solver`'s trajectories cleared at each of `t_c` (s): bool (len(t_c),)."""
-    return is_unstable(solver.case, solver.solve(t, t_c).delta)
+@dataclass
+class _Judge:
+    """The criterion on `solver`'s trajectories on the times `t` (s), counting the `solve` calls,
+    the clearing times asked and those refused."""
+
+    solver: AbstractSolver
+    t: np.ndarray
+    solves: int = 0
+    trajectories: int = 0
+    refused: int = 0
+
+    def __call__(self, t_c: np.ndarray) -> np.ndarray:
+        """(len(t_c),) float: 1.0 where the trajectory cleared at t_c (s) is unstable, 0.0 stable,
+        NaN refused; a refused batch is asked again one clearing time at a time."""
+        self.solves += 1
+        self.trajectories += t_c.size
+        try:
+            return is_unstable(self.solver.case, self.solver.solve(self.t, t_c).delta).astype(float)
+        except SolveError:
+            if t_c.size == 1:
+                self.refused += 1
+                return np.array([math.nan])
+        return np.concatenate([self(t_c[i:i + 1]) for i in range(t_c.size)])
+
+    def one(self, t_c: float) -> float:
+        return float(self(np.array([t_c]))[0])
+
+    def search(self, stable_s: float, unstable_s: float, note: str = "") -> Search:
+        return Search(stable_s, unstable_s, self.solves, self.trajectories, note, self.refused)
 
 
-def _narrow(unstable: Callable[[float], bool], lo: float, hi: float) -> tuple[float, float, int]:
-    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`: the final bracket
-    and the number of evaluations."""
-    evaluations = 0
+def _narrow(judge: _Judge, lo: float, hi: float) -> Search:
+    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`, stopped by a
+    refused midpoint (the note says where)."""
     while hi - lo > BRACKET_S * (1 + 1e-9):
         mid = 0.5 * (lo + hi)
-        evaluations += 1
-        if unstable(mid):
+        verdict = judge.one(mid)
+        if math.isnan(verdict):
+            return judge.search(lo, hi, f"refused t_c = {mid:.6g} s: the bracket left at {1e3 * (hi - lo):.3g} ms")
+        if verdict:
             hi = mid
         else:
             lo = mid
-    return lo, hi, evaluations
+    return judge.search(lo, hi)
 
 
-def _outside(case: Case, stable_at_max: bool, solves: int, trajectories: int) -> Search:
+def _bracket(judge: _Judge, grid: np.ndarray, labels: np.ndarray) -> Search:
+    """From the labels (1 unstable, 0 stable, NaN refused) of the clearing times `grid` (s,
+    increasing): no CCT in the range (`_outside`), none found for want of a clearing time judged on
+    one side, or the bracket [the last stable, the first unstable above it] narrowed (`_narrow`)."""
+    case = judge.solver.case
+    unstable, stable = labels == 1, labels == 0
+    if unstable[0] or (stable[-1] and not unstable.any()):
+        return _outside(judge, stable_at_max=not unstable.any())
+    refused = f"; {int(np.isnan(labels).sum())} of {labels.size} refused"
+    if not unstable.any():
+        last = float(grid[stable][-1]) if stable.any() else math.nan
+        return judge.search(last, math.nan, f"no clearing time judged unstable up to p1_max = {case.p1_max} s{refused}")
+    first = int(np.argmax(unstable))
+    if not stable[:first].any():
+        return judge.search(math.nan, float(grid[first]), f"no clearing time judged stable below the first unstable, "
+                                                          f"{grid[first]:.6g} s{refused}")
+    return _narrow(judge, float(grid[:first][stable[:first]][-1]), float(grid[first]))
+
+
+def _outside(judge: _Judge, stable_at_max: bool) -> Search:
     """The search's outcome when the range holds no CCT."""
-    lo, hi = case.p1_min, case.p1_max
+    lo, hi = judge.solver.case.p1_min, judge.solver.case.p1_max
     if stable_at_max:
-        return Search(hi, math.nan, solves, trajectories, f"stable at p1_max = {hi} s: the CCT lies above the range")
-    return Search(math.nan, lo, solves, trajectories, f"unstable at p1_min = {lo} s: the CCT lies below the range")
+        return judge.search(hi, math.nan, f"stable at p1_max = {hi} s: the CCT lies above the range")
+    return judge.search(math.nan, lo, f"unstable at p1_min = {lo} s: the CCT lies below the range")
 
 
 def bisect(solver: AbstractSolver) -> Search:
     """The CCT search of an adapter that does not train: the range's ends, then bisection, each
     evaluation one trajectory on `criterion_times`."""
     case = solver.case
-    t = criterion_times(case)
-    ends = _unstable(solver, t, np.array([case.p1_min, case.p1_max]))
-    if ends[0] or not ends[1]:
-        return _outside(case, not ends[1], 1, 2)
-    lo, hi, evaluations = _narrow(lambda t_c: bool(_unstable(solver, t, np.array([t_c]))[0]), case.p1_min,
-                                  case.p1_max)
-    return Search(lo, hi, 1 + evaluations, 2 + evaluations)
+    judge = _Judge(solver, criterion_times(case))
+    ends = np.array([case.p1_min, case.p1_max])
+    return _bracket(judge, ends, judge(ends))
 
 
 def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
@@ -123,26 +174,24 @@ def grid_then_bisect(solver: AbstractSolver, step_s: float) -> Search:
     case = solver.case
     if not step_s > 0:
         raise ValueError(f"the surrogate's grid step must be > 0 s, got {step_s!r}")
-    t = criterion_times(case)
+    judge = _Judge(solver, criterion_times(case))
     grid = np.linspace(case.p1_min, case.p1_max, math.ceil(round((case.p1_max - case.p1_min) / step_s, 9)) + 1)
-    unstable = _unstable(solver, t, grid)
-    if unstable[0] or not unstable.any():
-        return _outside(case, not unstable.any(), 1, grid.size)
-    first = int(np.argmax(unstable))
-    lo, hi, evaluations = _narrow(lambda t_c: bool(_unstable(solver, t, np.array([t_c]))[0]),
-                                  float(grid[first - 1]), float(grid[first]))
-    return Search(lo, hi, 1 + evaluations, grid.size + evaluations)
+    return _bracket(judge, grid, judge(grid))
 
 
 def _trajectories(solver: AbstractSolver, ref_cct: float) -> dict:
     """The figure's data (`harness.report.cct_plot`): `traj_t_c` [stable, unstable] clearing times (s)
     `TRAJECTORY_OFFSET_S` either side of the reference CCT `ref_cct` (s), clamped to the case's range;
     `traj_t` (n_t,) s; `traj_pred` and `traj_ref` (2, n_t, n): the adapter's and the reference's
-    angles from the centre of inertia (rad), as lists. Not timed."""
+    angles from the centre of inertia (rad), as lists; {} where the adapter refuses either clearing
+    time. Not timed."""
     case = solver.case
     t_c = np.clip([ref_cct - TRAJECTORY_OFFSET_S, ref_cct + TRAJECTORY_OFFSET_S], case.p1_min, case.p1_max)
     t = criterion_times(case)[::TRAJECTORY_EVERY]
-    pred = relative_angles(case, solver.solve(t, t_c).delta)
+    try:
+        pred = relative_angles(case, solver.solve(t, t_c).delta)
+    except SolveError:  # a refused clearing time: no figure of this model
+        return {}
     ref = relative_angles(case, reference(case, t, t_c)[0])
     return {"traj_t_c": t_c.tolist(), "traj_t": t.tolist(), "traj_pred": pred.tolist(), "traj_ref": ref.tolist()}
 
@@ -164,7 +213,7 @@ def _search_row(solver: AbstractSolver, settings: Settings, ref_cct: float) -> d
     return {
         "method": method, "cct_s": result.cct_s, "reference_cct_s": ref_cct, "cct_error_s": result.cct_s - ref_cct,
         "stable_s": result.stable_s, "unstable_s": result.unstable_s, "note": result.note,
-        "solves": result.solves, "trajectories": result.trajectories,
+        "solves": result.solves, "trajectories": result.trajectories, "refused": result.refused,
         "median_s": timing.median_s, "q25_s": timing.q25_s, "q75_s": timing.q75_s, "repeats": timing.repeats,
     }
 
