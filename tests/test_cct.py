@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from harness.report.cct import cct_headline
+from harness.report.cct import cct_headline, cct_table
 from harness.report.cct_plot import cct_plot
 from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
@@ -157,8 +157,12 @@ def test_refused_clearing_times_are_neither_side_and_leave_the_bracket_wide_wher
     solver = _fitted(RefusingSurrogate, case)
     found = grid_then_bisect(solver, 1e-2)
     assert found.stable_s <= t_star < found.unstable_s and found.unstable_s > t_star + RefusingSurrogate.REFUSED[1]
-    assert found.unstable_s - found.stable_s > BRACKET_S and found.refused >= 3
-    assert found.note.startswith("refused t_c = ") and "the bracket left at" in found.note
+    assert found.unstable_s - found.stable_s > BRACKET_S and found.note.startswith("refused t_c = ")
+    # the grid (10 ms from 0.05 s): stable to 0.21 s, 0.22 and 0.23 s refused, 0.24 s unstable; one
+    # batch, then its 36 clearing times one at a time, then 5 midpoints of which 4 are refused, each
+    # below the last: the bracket's lower end bisected up to the refusals, its upper end left
+    assert (found.solves, found.trajectories, found.refused) == (42, 77, 6)
+    assert (found.unstable_s, round(found.stable_s, 9)) == (0.24, 0.211875) and found.stable_s <= t_star
     (row,) = cct(solver, case, SETTINGS)
     assert row["refused"] == found.refused and row["note"] == found.note and "traj_pred" not in row
     assert abs(row["cct_error_s"]) < (row["unstable_s"] - row["stable_s"])
@@ -223,10 +227,11 @@ def test_the_planner_runs_cct_on_fault_cases_with_adapters_that_integrate_them(m
 def _search(solver: str, error_ms: float, median_ms: float, spread: float = 0.01, **extra) -> dict:
     """A cct row of case kundur4's fault: the search's CCT error (ms) and its time (median, ms)."""
     ref = 0.2
+    cct_s = ref + 1e-3 * error_ms
     return {"suite": "cct", "case": CASE, "solver": solver, "config": "default", "variant": "", "seed": -1,
-            "status": "ok", "trains": False, "method": "bisection", "cct_s": ref + 1e-3 * error_ms,
+            "status": "ok", "trains": False, "method": "bisection", "cct_s": cct_s,
             "reference_cct_s": ref, "cct_error_s": 1e-3 * error_ms, "note": "", "solves": 10, "trajectories": 11,
-            "bracket_s": BRACKET_S, "median_s": 1e-3 * median_ms, "q25_s": 1e-3 * median_ms * (1 - spread),
+            "bracket_s": BRACKET_S, "stable_s": cct_s - BRACKET_S / 2, "unstable_s": cct_s + BRACKET_S / 2, "median_s": 1e-3 * median_ms, "q25_s": 1e-3 * median_ms * (1 - spread),
             "q75_s": 1e-3 * median_ms * (1 + spread), "repeats": 5, **extra}
 
 
@@ -259,6 +264,25 @@ def test_the_headline_matches_each_seed_with_a_rival_at_least_as_close_and_calls
     (row,) = cct_headline(frames).to_dict("records")
     assert row["verdict"] == "classical faster (classical faster on 1 of 1)"
     assert row["break-even N* (CCT searches)"] == "never"
+
+
+def test_a_search_left_wide_by_refusals_is_no_rival_and_a_loss_and_shows_its_note():
+    """A bracket wider than 1 ms has no error to match, however close its midpoint: a classical one
+    is no rival, a surrogate's seed loses, and the cells give the error with the note; the table
+    counts the refusals."""
+    note = "refused t_c = 0.21 s: the bracket left at 20 ms"
+    wide = {"stable_s": 0.19, "unstable_s": 0.21, "note": note, "refused": 3}
+    classical = [_search("coarse", 3.0, 0.1), _search("fine", 0.4, 1.0), _search("wide", 0.2, 0.01, **wide)]
+    frames = suite_frames([*classical, _surrogate(0, -0.3, 0.5, 10.0)])
+    (row,) = cct_headline(frames).to_dict("records")
+    assert row["fastest classical within 1 ms"] == "fine [default]"
+    assert row["verdict"] == "PINN faster (PINN faster on 1 of 1)"
+    assert f"wide 0.2; {note}" in row["each classical adapter: CCT error / time to CCT (ms)"]
+    table = cct_table(frames)
+    assert table.loc[table["solver"] == "wide [default]", "refused"].tolist() == [3]
+    seed = {**_surrogate(0, 0.1, 0.01, 10.0), **wide}
+    (row,) = cct_headline(suite_frames([*classical, seed])).to_dict("records")
+    assert row["verdict"].startswith("classical faster") and row["PINN CCT error (ms)"] == f"0.1; {note}"
 
 
 def test_a_verdict_pinn_searches_with_each_verdict_seed(monkeypatch):

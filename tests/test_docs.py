@@ -118,6 +118,8 @@ def test_the_at_scale_block_states_a_shared_machine_once_and_differing_ones_per_
     shared = at_scale_block([(rows, meta, folder), (rows, meta, folder)], ROOT / "README.md")
     assert shared.count("Every run on ") == 1 and shared.count(f"commit {meta['commit']}.") == 2
     assert "Run of" not in shared
+    (every,) = [line for line in shared.splitlines() if line.startswith("Every run on ")]
+    assert meta["commit"] not in every and meta["date"] not in every and every.endswith(f"diffrax {meta['version_diffrax']}.")
     other = {**meta, "cpu": "another CPU"}
     apart = at_scale_block([(rows, meta, folder), (rows, other, folder)], ROOT / "README.md")
     assert "Every run on " not in apart and apart.count("Run of ") == 2 and "on another CPU" in apart

@@ -3,7 +3,9 @@ headline per fault case and PINN (`cct_headline`, the README's and the results i
 
 Within a case, a surrogate's rival is the fastest classical search whose CCT is at least as close
 to the reference's as the surrogate's, or within the bracket (1 ms) when the surrogate is: the
-bracket is the resolution every search narrows to. Break-even N* = training / (rival's search -
+bracket is the resolution a search narrows to. A search whose bracket stayed wider (the adapter
+refused clearing times inside it, `harness.suites.cct`) or that found no CCT has no error to match:
+it is no rival, it counts as a loss for a surrogate, and its cells give its note. Break-even N* = training / (rival's search -
 surrogate's search) (`speedups.break_even`): the CCT searches after which training and N*
 surrogate searches cost no more than N* rival searches ("never" when the surrogate's search is not
 faster). A surrogate trained on one contingency answers that contingency: it pays off on its own
@@ -32,7 +34,7 @@ __all__ = ["CCT_ABOUT", "CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline
 CCT_GATE_S = 5e-3  # s: a surrogate's CCT further than this from the reference's counts as a loss
 
 CCT_TITLE = "Critical clearing time"
-CCT_ABOUT = ("Each adapter's CCT to a bracket of 1 ms (the criterion: a machine more than pi rad from the centre of "
+CCT_ABOUT = ("Each adapter's CCT to a bracket of 1 ms, or its note where the search stopped short (the criterion: a machine more than pi rad from the centre of "
              "inertia within the horizon, judged every 10 ms), its error against the reference's (bisection to 1e-6 s "
              "on DOP853 at 1e-12), the warm time of the whole search (median ± half the interquartile range) and, for "
              "a surrogate, its training and break-even against its rival: the fastest classical search at least as "
@@ -58,7 +60,19 @@ def _frame(frames: dict) -> pd.DataFrame:
         merged = df[key].merge(fits[[*key, "fit_s"]].drop_duplicates(key), on=key, how="left")
         own = pd.Series(merged["fit_s"].to_numpy(), index=df.index)
     fit_s = df["seed_fit_s"].fillna(own) if "seed_fit_s" in df else own
-    return df.assign(training_s=fit_s.where(df["surrogate"]))
+    # a bracket left wider than the suite's (refusals inside it) carries no error to match
+    narrowed = ((df["unstable_s"] - df["stable_s"]) <= df["bracket_s"] * (1 + 1e-9)
+                if {"stable_s", "unstable_s"} <= set(df) else pd.Series(True, index=df.index))
+    return df.assign(training_s=fit_s.where(df["surrogate"]), raw_error_s=df["cct_error_s"],
+                     cct_error_s=df["cct_error_s"].where(narrowed))
+
+
+def _error_cell(r: pd.Series) -> str:
+    """A search's CCT error (ms), with its note where it has one (the error only where the
+    bracket stayed wide around a CCT)."""
+    if r["note"] == "":
+        return fmt(1e3 * r["cct_error_s"], 2)
+    return r["note"] if math.isnan(r["raw_error_s"]) else f"{fmt(1e3 * r['raw_error_s'], 2)}; {r['note']}"
 
 
 def _rival(classical: pd.DataFrame, error_s: float, bracket_s: float) -> pd.Series | None:
@@ -93,13 +107,14 @@ def _each_adapter(classical: pd.DataFrame) -> str:
     """One cell: each classical adapter's fastest search (any config or variant), its CCT error and
     time (ms), fastest first."""
     fastest = classical.loc[classical.groupby("solver")["median_s"].idxmin()].sort_values("median_s")
-    return "; ".join(f"{r['solver']} {fmt(1e3 * r['cct_error_s'], 2)} / {fmt(1e3 * r['median_s'])}"
-                     if r["note"] == "" else f"{r['solver']} {r['note']}" for _, r in fastest.iterrows())
+    return "; ".join(f"{r['solver']} {_error_cell(r)}" + (f" / {fmt(1e3 * r['median_s'])}" if r["note"] == "" else "")
+                     for _, r in fastest.iterrows())
 
 
 def cct_table(frames: dict) -> pd.DataFrame:
     """Every search of the run: per case, adapter and model seed, the CCT, the reference's, the
-    error, the search's time, solves and trajectories; for a surrogate its training (s) and its
+    error, the search's time, solves and trajectories (and the clearing times refused, where a search
+    of the run had any); for a surrogate its training (s) and its
     break-even against its rival."""
     df = _frame(frames)
     if df.empty:
@@ -110,12 +125,14 @@ def cct_table(frames: dict) -> pd.DataFrame:
         for _, r in case.iterrows():
             row = {"case": r["case"], "solver": r["label"], "seed": r["model_seed"] if r["surrogate"] else "-",
                    "search": r["method"], "CCT (s)": fmt(r["cct_s"], 5), "reference CCT (s)": fmt(r["reference_cct_s"], 7),
-                   "CCT error (ms)": fmt(1e3 * r["cct_error_s"], 2) if r["note"] == "" else r["note"],
+                   "CCT error (ms)": _error_cell(r),
                    "time to CCT (ms)": latency_cell(r), "solves": int(r["solves"]), "trajectories": int(r["trajectories"])}
             if r["surrogate"]:
                 _, n_star = _break_even(classical, r)
                 row["training (s)"] = fmt(r["training_s"])
                 row["break-even N* (CCT searches)"] = "never" if n_star == math.inf else fmt(n_star)
+            if r.get("refused", 0) > 0:  # rows written before the suite counted refusals have none
+                row["refused"] = int(r["refused"])
             rows.append(row)
     return pd.DataFrame(rows)
 
@@ -150,9 +167,10 @@ def cct_headline(frames: dict) -> pd.DataFrame:
                     worst, worst_n = r, n_star
             label_ = verdicts[0] if len(set(verdicts)) == 1 else TIE
             counts = ", ".join(f"{v} on {verdicts.count(v)} of {len(verdicts)}" for v in dict.fromkeys(verdicts))
-            errors = 1e3 * fastest["cct_error_s"]
-            rows.append({**head, "PINN": pinn, "seeds": len(fastest),
-                         "PINN CCT error (ms)": fmt(errors.iloc[errors.abs().argmax()], 2),
+            short = fastest[fastest["cct_error_s"].isna()]  # a seed without an error to match shows its note
+            error = (_error_cell(short.iloc[0]) if not short.empty
+                     else fmt(1e3 * fastest["cct_error_s"].iloc[fastest["cct_error_s"].abs().argmax()], 2))
+            rows.append({**head, "PINN": pinn, "seeds": len(fastest), "PINN CCT error (ms)": error,
                          "PINN time to CCT (ms)": latency_cell(worst), "training (s)": fmt(fastest["training_s"].max()),
                          "break-even N* (CCT searches)": "never" if worst_n == math.inf else fmt(worst_n),
                          "verdict": f"{label_} ({counts})"})

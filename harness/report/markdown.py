@@ -19,11 +19,16 @@ __all__ = ["LADDER_ABOUT", "LADDER_HEADING", "header", "scaling_labels", "scalin
 
 def header(meta: dict) -> str:
     """The run's line: date, CPU, threads, commit, settings and library versions."""
+    return f"Run of {meta.get('date', '?')} on {environment(meta)}.\n\n"
+
+
+def environment(meta: dict, commit: bool = True) -> str:
+    """The run's CPU, threads, commit (unless `commit` is False), settings and library versions."""
     get = lambda key: meta.get(key, "?")
-    return (f"Run of {get('date')} on {get('cpu')} ({get('threads')} threads), commit {get('commit')}, "
-            f"settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
+    return (f"{get('cpu')} ({get('threads')} threads)" + (f", commit {get('commit')}" if commit else "")
+            + f", settings {get('settings')}; numpy {get('version_numpy')}, scipy {get('version_scipy')}, "
             f"casadi {get('version_casadi')}, torch {get('version_torch')}, jax {get('version_jax')}, "
-            f"numba {get('version_numba')}, diffrax {get('version_diffrax')}.\n\n")
+            f"numba {get('version_numba')}, diffrax {get('version_diffrax')}")
 
 
 def work_minutes(rows: list[dict]) -> str:

@@ -21,10 +21,13 @@ An adapter may refuse a clearing time (`SolveError`: pinnsim, for one, when a ma
 network's trained domain or Gauss-Newton does not converge). A refused batch is asked again one
 clearing time at a time; a refused clearing time is neither stable nor unstable. The bracket is
 then [the last clearing time judged stable, the first judged unstable above it], refused ones
-inside it left alone; a refused bisection midpoint ends the narrowing, the bracket left wider than
-`BRACKET_S`. The row counts the refused clearing times (`refused`) and its `note` says where the
-search stopped and why; with no clearing time judged stable (or unstable) the CCT is NaN. The search is timed whole,
-warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
+inside it left alone. A refused bisection midpoint becomes the top of the interval bisected next
+(the CCT still lies in the bracket, so a clearing time judged below the refusal still narrows it);
+where refusals leave nothing to bisect, the bracket stays wider than `BRACKET_S`. The row counts
+the distinct clearing times refused (`refused`) and its `note` says where the search stopped and
+why; with no clearing time judged stable (or unstable) the CCT is NaN.
+
+The search is timed whole, warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
 `Settings.max_call_s` is timed once).
 
 Each row holds what its unit measures; the training cost of a surrogate is its unit's `fit` row,
@@ -35,7 +38,7 @@ and the break-even, which needs the other adapters' searches, is computed by the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -88,24 +91,26 @@ def criterion_times(case: Case) -> np.ndarray:
 @dataclass
 class _Judge:
     """The criterion on `solver`'s trajectories on the times `t` (s), counting the `solve` calls,
-    the clearing times asked and those refused."""
+    the clearing times asked and the distinct ones refused (a refused one is not asked again)."""
 
     solver: AbstractSolver
     t: np.ndarray
     solves: int = 0
     trajectories: int = 0
-    refused: int = 0
+    refused_t_c: set[float] = field(default_factory=set)
 
     def __call__(self, t_c: np.ndarray) -> np.ndarray:
         """(len(t_c),) float: 1.0 where the trajectory cleared at t_c (s) is unstable, 0.0 stable,
         NaN refused; a refused batch is asked again one clearing time at a time."""
+        if t_c.size == 1 and _key(t_c[0]) in self.refused_t_c:
+            return np.array([math.nan])
         self.solves += 1
         self.trajectories += t_c.size
         try:
             return is_unstable(self.solver.case, self.solver.solve(self.t, t_c).delta).astype(float)
         except SolveError:
             if t_c.size == 1:
-                self.refused += 1
+                self.refused_t_c.add(_key(t_c[0]))
                 return np.array([math.nan])
         return np.concatenate([self(t_c[i:i + 1]) for i in range(t_c.size)])
 
@@ -113,19 +118,30 @@ class _Judge:
         return float(self(np.array([t_c]))[0])
 
     def search(self, stable_s: float, unstable_s: float, note: str = "") -> Search:
-        return Search(stable_s, unstable_s, self.solves, self.trajectories, note, self.refused)
+        return Search(stable_s, unstable_s, self.solves, self.trajectories, note, len(self.refused_t_c))
+
+
+def _key(t_c: float) -> float:
+    """A clearing time (s) as the judge remembers a refusal: a bisection midpoint may differ from a
+    grid point by an ulp."""
+    return round(float(t_c), 12)
 
 
 def _narrow(judge: _Judge, lo: float, hi: float) -> Search:
-    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`, stopped by a
-    refused midpoint (the note says where)."""
-    while hi - lo > BRACKET_S * (1 + 1e-9):
-        mid = 0.5 * (lo + hi)
+    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`. A refused midpoint
+    becomes the top of the interval bisected next ([lo, refused]: a clearing time judged there still
+    moves lo up or hi down, as the CCT lies in [lo, hi]); when that interval is narrower than
+    `BRACKET_S` and [lo, hi] is not, the bracket stays wide and the note says where."""
+    top, wide = hi, BRACKET_S * (1 + 1e-9)
+    while hi - lo > wide:
+        if top - lo <= wide:
+            return judge.search(lo, hi, f"refused t_c = {top:.6g} s: the bracket left at {1e3 * (hi - lo):.3g} ms")
+        mid = 0.5 * (lo + top)
         verdict = judge.one(mid)
         if math.isnan(verdict):
-            return judge.search(lo, hi, f"refused t_c = {mid:.6g} s: the bracket left at {1e3 * (hi - lo):.3g} ms")
-        if verdict:
-            hi = mid
+            top = mid
+        elif verdict:
+            hi = top = mid
         else:
             lo = mid
     return judge.search(lo, hi)
