@@ -56,3 +56,12 @@ def raise_if_interrupted(exc: BaseException) -> None:
             raise KeyboardInterrupt from exc
         seen.add(id(link))
         todo += [link.__cause__, link.__context__]
+
+
+def failure_status(exc: BaseException) -> str:
+    """The status of work that raised `exc`: 'failed: <type>: <message>'. An interrupt is not a
+    failure: when `exc` comes of a KeyboardInterrupt (a Ctrl-C inside numba, JAX or torch code), a
+    KeyboardInterrupt is raised instead (`raise_if_interrupted`), so that the run stops as on a
+    Ctrl-C anywhere else: the work unrecorded, measured by `--resume`."""
+    raise_if_interrupted(exc)
+    return f"failed: {type(exc).__name__}: {exc}"

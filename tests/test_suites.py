@@ -52,6 +52,32 @@ def test_latency_estimates_a_query_from_the_last_measured_one_linearly_and_never
     assert _estimate("points batch", 100, {"single point": [(1, 0.01), (1, 0.02)]}) == pytest.approx(2.0)
 
 
+def test_a_query_whose_answer_does_not_fit_in_memory_is_skipped_with_its_size(monkeypatch):
+    """10,000 trajectories of 201 times of 1445 machines are 43 GiB of answer, over a third of 24
+    GiB; of 260 machines 7.8 GiB, under it; the latency suite writes the skip as the query's row
+    and asks the adapter nothing."""
+    from types import SimpleNamespace
+
+    from harness.suites import latency
+
+    t, P1 = np.linspace(0.0, 20.0, 201), np.linspace(0.0, 1.0, 10_000)
+    memory = 24 * 2**30
+    status = latency.too_large(SimpleNamespace(n=1445), "throughput", t, P1, memory)
+    assert status == "skipped: its answer, 43.3 GiB (delta and omega, float64), is over 0.33 of this machine's 24 GiB"
+    assert latency.too_large(SimpleNamespace(n=260), "throughput", t, P1, memory) is None
+    assert latency.too_large(SimpleNamespace(n=1445), "points batch", t, P1, memory) is None  # one time a point
+
+    class Unasked:
+        def solve(self, *_):
+            raise AssertionError("a skipped query was asked")
+
+        solve_points = solve
+
+    monkeypatch.setattr(latency, "machine_memory_bytes", lambda: 1)
+    rows = latency.latency(Unasked(), SMIB_INFERENCE, QUICK)
+    assert rows and all(r["status"].startswith("skipped: its answer, ") for r in rows)
+
+
 def test_identification_observations_from_the_reference_or_the_papers_data():
     from harness.suites.identification import observations
     from systems.cases import SMIB_IDENTIFICATION

@@ -135,6 +135,33 @@ def test_a_seed_over_the_accuracy_gate_is_a_loss_and_a_query_without_an_accurate
 
 
 @pytest.mark.slow
+def test_a_query_that_fails_or_does_not_fit_is_its_own_row_and_the_others_are_measured(pinn, monkeypatch):
+    """One query's failure (here its errors raise) and one query too large for memory are a row
+    each with the status; every other query gets its verdict."""
+    from harness.suites import verdict as suite
+
+    small = replace(SETTINGS, verdict_seeds=(0,), points_batch=0)  # the grid, 1 trajectory, 1 point
+    queries = verdict_queries(CASE, small)
+    large = next(q.name for q in queries if q.P1.size > 1)
+    failing = next(q.name for q in queries if q.kind == "single point")
+    errors = suite.query_errors
+
+    def fail_one(solver, case, query, off=None):
+        if query.name == failing:
+            raise MemoryError("out of memory")
+        return errors(solver, case, query, off)
+
+    monkeypatch.setattr(suite, "query_errors", fail_one)
+    monkeypatch.setattr(suite, "too_large", lambda case, kind, t, P1: "skipped: too large" if P1.size > 1 else None)
+    rows = {r["query"]: r for r in verdict(pinn, CASE, small)}
+    assert set(rows) == {q.name for q in queries} and len(rows) == 3
+    assert rows[failing]["status"] == "failed: MemoryError: out of memory"
+    assert rows[large]["status"] == "skipped: too large"
+    measured = [r for name, r in rows.items() if "status" not in r]
+    assert measured and all(r["samples"] > 0 for r in measured)
+
+
+@pytest.mark.slow
 def test_the_query_paths_of_a_model_answer_alike_from_the_same_weights(pinn):
     solver = pinn
     paths = query_paths(solver)

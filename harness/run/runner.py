@@ -10,7 +10,7 @@ already records, runs the rest on an executor (in this process, joblib or Dask:
 (`RowStore.record`). Failures and missing dependencies are rows (`failed` tells them); the run
 goes on, and the command says afterwards which units failed, with its exit status
 (`harness.cli.outcome`). An interrupt is no failure: one that compiled code wrapped in another
-exception stops the run as a plain Ctrl-C does (`_failure`).
+exception stops the run as a plain Ctrl-C does (`harness.usage.failure_status`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from harness.run.plan import FIT, Unit, plan
 from harness.settings import Settings, SolverSpec
 from harness.store import RowStore
 from harness.suites import SUITES
-from harness.usage import raise_if_interrupted
+from harness.usage import failure_status
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
@@ -57,15 +57,6 @@ def check_units(units: Iterable[Unit], settings: Settings,
             raise ValueError(f"{describe(unit)}: {exc}") from None
 
 
-def _failure(exc: BaseException) -> str:
-    """The status of a unit of work that raised `exc`: 'failed: <type>: <message>'. An interrupt is
-    not a failure: when `exc` comes of a KeyboardInterrupt (a Ctrl-C inside numba, JAX or torch
-    code), a KeyboardInterrupt is raised instead (`raise_if_interrupted`), so that the run stops as
-    on a Ctrl-C anywhere else: the unit of work unrecorded, measured by `--resume`."""
-    raise_if_interrupted(exc)
-    return f"failed: {type(exc).__name__}: {exc}"
-
-
 def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tuple[str, list[dict]]]:
     """Measure the units of work `todo` (names from `unit.works()`) of `unit` and yield (work, rows)
     as each completes. The adapter is built and, when a suite needs it, fitted or loaded from the
@@ -86,7 +77,7 @@ def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tu
         parts, peak_mib = call_isolated(run_unit_in_worker, unit, replace(settings, unit_limits=None), todo,
                                         limits=settings.unit_limits)
     except (OverLimit, RuntimeError) as exc:
-        status = f"skipped: {exc}" if isinstance(exc, OverLimit) else _failure(exc)
+        status = f"skipped: {exc}" if isinstance(exc, OverLimit) else failure_status(exc)
         print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
         base = {**unit.base(settings), "worker": f"{socket.gethostname()}:{os.getpid()}"}
         for work in (w for w in unit.works() if w in todo):
@@ -121,7 +112,7 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
                                  "iterations": report.iterations, "loss": report.loss, "message": report.message,
                                  "work_s": time.perf_counter() - start}]
         except Exception as exc:  # noqa: BLE001 - recorded as rows, the run goes on
-            status = _failure(exc)
+            status = failure_status(exc)
             print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
             traceback.print_exc()
             for work in todo:
@@ -132,7 +123,7 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
             try:
                 rows = [{"status": skipped[suite]}] if suite in skipped else SUITES[suite].run(solver, unit.case, settings)
             except Exception as exc:  # noqa: BLE001
-                rows = [{"status": _failure(exc)}]
+                rows = [{"status": failure_status(exc)}]
                 print(f"[swingbench] {unit.label} {suite}: {rows[0]['status']}", file=sys.stderr)
                 traceback.print_exc()
             work_s = time.perf_counter() - start

@@ -3,6 +3,8 @@ and a batch of single-point queries at scattered (t1, P1) in one call."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from harness.measure.timing import time_call
@@ -13,6 +15,27 @@ from systems.cases import Case, standard_grid
 
 T1_S = 10.0  # the paper's single-time-point query (its 87x claim)
 POINTS_SEED = 2024  # the scattered single points: the same for every adapter
+# A query is asked only when its answer (delta and omega, float64) takes at most this share of the
+# machine's memory: an adapter holds the answer and its own work arrays at once (the reduced PINN
+# about twice the answer), and a query over the memory ends the whole process.
+ANSWER_MEMORY_SHARE = 1 / 3
+
+
+def machine_memory_bytes() -> int:
+    """The machine's physical memory (bytes)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def too_large(case: Case, kind: str, t: np.ndarray, P1: np.ndarray, memory_bytes: int | None = None) -> str | None:
+    """A "skipped: ..." status when the answer of the query (`kind`, times `t` s, scenarios `P1`)
+    on `case`, 2 x 8 bytes x len(P1) x (1 for a batch of points, else len(t)) x n, is over
+    `ANSWER_MEMORY_SHARE` of `memory_bytes` (default: this machine's memory); else None."""
+    memory = machine_memory_bytes() if memory_bytes is None else memory_bytes
+    size = 16 * P1.size * (1 if kind == "points batch" else t.size) * case.n
+    if size <= ANSWER_MEMORY_SHARE * memory:
+        return None
+    return (f"skipped: its answer, {size / 2**30:.3g} GiB (delta and omega, float64), is over "
+            f"{ANSWER_MEMORY_SHARE:.2g} of this machine's {memory / 2**30:.3g} GiB")
 
 
 def scattered_points(case: Case, n: int, distinct: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +94,8 @@ def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     """Median, quartiles and minimum (s) of warm `solve` calls (delta and omega), and of one
     `solve_points` call for the batch of points; `per_query_s` = median / number of trajectories
     or points. A query whose cost, extrapolated from the earlier queries of its kind (`_estimate`),
-    exceeds `max_query_s` is skipped with a row that says so, rather than left out silently."""
+    exceeds `max_query_s`, or whose answer would not fit in memory (`too_large`), is skipped with a
+    row that says so, rather than left out silently."""
     rows = []
     timed: dict[str, list[tuple[int, float]]] = {}
     for kind, name, t, P1 in queries(case, settings):
@@ -80,6 +104,9 @@ def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
                 "distinct_p1": int(np.unique(P1).size),
                 "t1_s": float(t[0]) if kind == "single point" else np.nan}
         estimate = _estimate(kind, n, timed)
+        if (large := too_large(case, kind, t, P1)) is not None:
+            rows.append({**base, "status": large})
+            continue
         if estimate is not None and estimate > settings.max_query_s:
             rows.append({**base, "status": f"skipped: estimated {estimate:.3g} s per call, over "
                                            f"{settings.max_query_s:g} s"})

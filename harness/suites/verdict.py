@@ -49,6 +49,8 @@ from harness.suites._base import Suite
 from harness.suites._matching import Match, Rivals
 from harness.suites._queries import Query, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models
+from harness.suites.latency import too_large
+from harness.usage import failure_status
 from solvers.base import AbstractSolver
 from systems.cases import Case
 
@@ -114,33 +116,32 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     accuracy, so the conservative ratio overstates the PINN's lead; where the rival is its
     family's coarsest point, `matched_ratio` is NaN and `rivals_note` says the ratio is only an
     upper bound on that lead. The same columns of the second rival, the classical surrogate, are
-    prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`)."""
+    prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`). A query
+    whose answer would not fit in memory (`harness.suites.latency.too_large`), or whose errors,
+    paths or rivals raise, is one row with its status ("skipped: ..." or "failed: ..."), and the
+    other queries are measured."""
     seeds = seed_models(solver, settings)
     rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
     plans: list[dict] = []
+    not_asked: list[dict] = []
     paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
     off = {seed: off_training_errors(pinn, case) for seed, (pinn, _, _) in seeds.items()}
     for query in verdict_queries(case, settings):
-        for seed, (own, fit_s, iterations) in seeds.items():
-            delta, omega = query_errors(own, case, query, off[seed])
-            path = _fastest_path(paths[seed], query)
-            pinn = paths[seed][path]
-            base = {"pinn_seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
-                    "distinct_p1": query.distinct_p1, "pinn_path": path, "t1_s": float(query.t[0]) if query.kind == "single point"
-                    else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
-                    "fit_s": fit_s, "fit_iterations": iterations}
-            gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
-            plans.append({"base": base, "query": query, "pinn": pinn, "gate": gate,
-                          **_side(rivals, query, delta, omega, gate),
-                          "surrogate": _side(surrogates, query, delta, omega, gate)})
-        print(f"[swingbench] verdict {case.name} {query.name}: rivals chosen", file=sys.stderr)
-    for plan in plans:
-        for side in (plan, plan["surrogate"]):
-            if side["rival"] is not None:
-                pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(side["rival"].solver())
-                with side["rival"].blas():
-                    rival_s = warm_call_s(rival_call)
-                side["calls"] = (calls_per_sample(warm_call_s(pinn_call)), calls_per_sample(rival_s))
+        about = {"kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
+                 "distinct_p1": query.distinct_p1}
+        status = too_large(case, query.kind, query.t, query.P1)
+        try:
+            if status is None:
+                planned = [_plan(query, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
+                           for seed, model in seeds.items()]
+                for plan in planned:
+                    _calls(plan)
+                plans += planned
+        except Exception as exc:  # noqa: BLE001 -- one query's failure is its row's, the others are still measured
+            status = failure_status(exc)
+        if status is not None:
+            not_asked.append({**about, "status": status})
+        print(f"[swingbench] verdict {case.name} {query.name}: {status or 'rivals chosen'}", file=sys.stderr)
     for _ in range(settings.verdict_rounds):
         for plan in plans:
             for side in (plan, plan["surrogate"]):
@@ -151,7 +152,33 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
                                    settings.verdict_pairs, *side["calls"], context_b=side["rival"].blas)
                 side["samples"][0].extend(a)
                 side["samples"][1].extend(b)
-    return [_row(plan, settings, rivals, surrogates) for plan in plans]
+    return [*(_row(plan, settings, rivals, surrogates) for plan in plans), *not_asked]
+
+
+def _plan(query: Query, seed: int, model: tuple[AbstractSolver, float, int], off: tuple[float, float],
+          paths: dict[str, AbstractSolver], case: Case, settings: Settings, rivals: Rivals, surrogates: Rivals) -> dict:
+    """One seed's verdict on `query` before its timing: the PINN's errors (`off`: its off-training
+    errors), its fastest path, the gate, and the two rivals' parts (`_side`)."""
+    own, fit_s, iterations = model
+    delta, omega = query_errors(own, case, query, off)
+    path = _fastest_path(paths, query)
+    base = {"pinn_seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
+            "distinct_p1": query.distinct_p1, "pinn_path": path, "t1_s": float(query.t[0]) if query.kind == "single point"
+            else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
+            "fit_s": fit_s, "fit_iterations": iterations}
+    gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
+    return {"base": base, "query": query, "pinn": paths[path], "gate": gate, **_side(rivals, query, delta, omega, gate),
+            "surrogate": _side(surrogates, query, delta, omega, gate)}
+
+
+def _calls(plan: dict) -> None:
+    """The calls per sample of the PINN and of each rival of `plan` (`calls_per_sample` of a warm call)."""
+    for side in (plan, plan["surrogate"]):
+        if side["rival"] is not None:
+            pinn_call, rival_call = plan["query"].call(plan["pinn"]), plan["query"].call(side["rival"].solver())
+            with side["rival"].blas():
+                rival_s = warm_call_s(rival_call)
+            side["calls"] = (calls_per_sample(warm_call_s(pinn_call)), calls_per_sample(rival_s))
 
 
 def _side(rivals: Rivals, query: Query, delta: float, omega: float, gate: bool) -> dict[str, Any]:
