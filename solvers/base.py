@@ -96,12 +96,16 @@ class Points(NamedTuple):
 
 
 class FitReport(NamedTuple):
-    """What `fit()` did: wall seconds, iterations (0 for ODE solvers), final loss (NaN if none)."""
+    """What `fit()` did: wall seconds, iterations (0 for ODE solvers), final loss (NaN if none).
+    `reused_s`: seconds of training done before this fit and reused by it (a model shared by every
+    case, loaded from its own cache), which `fit()` adds to the wall seconds: a model's cost is its
+    training wherever it was paid."""
 
     seconds: float
     iterations: int = 0
     loss: float = float("nan")
     message: str = ""
+    reused_s: float = 0.0
 
 
 class Identification(NamedTuple):
@@ -319,7 +323,7 @@ class AbstractSolver(abc.ABC):
         self.fitted = True
         if report is None:
             return FitReport(seconds=seconds)
-        return report._replace(seconds=seconds)
+        return report._replace(seconds=seconds + report.reused_s)
 
     def solve(self, t_query, P1, extrapolate: bool = False) -> Trajectory:
         """delta (rad) and omega (rad/s) of every machine at times `t_query` (1-D, s, >= 0, any

@@ -77,6 +77,8 @@ def test_a_network_trained_once_loads_and_answers_on_a_case_it_was_not_trained_o
     loaded = other.fit()
     assert "loaded from" in loaded.message
     np.testing.assert_array_equal(other.component.theta, first.component.theta)
+    # the network's training is the loaded model's cost too, wherever it was paid
+    assert loaded.seconds >= other.component.record["seconds"] > 0
     t, P1 = np.array([0.0, 0.3, 1.0, 2.5]), np.array([case.p1_min, case.p1_max])
     traj = other.solve(t, P1)
     ref, _ = reference(case, t, P1)

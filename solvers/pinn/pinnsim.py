@@ -147,14 +147,17 @@ class PinnSim(AbstractSolver):
                               "numpy": np.__version__, "code": hashlib.sha256(source).hexdigest()}, sort_keys=True)
         return "component-" + hashlib.sha256(payload.encode()).hexdigest()[:16]
 
-    def _component(self) -> tuple[Component, str]:
+    def _component(self) -> tuple[Component, str, float]:
+        """The component network, how it was had, and its training seconds when loaded from the
+        cache (0 when trained here: then they are this fit's)."""
         options = self.options
         path = None if options["component_dir"] is None else Path(options["component_dir"]) / self.component_key()
         if path is not None and path.with_name(path.name + ".json").is_file():
             component = Component.load(path)
             if component.domain == self.domain:
-                return component, (f"component network loaded from {path} (trained once in "
-                                   f"{component.record.get('seconds', float('nan')):.1f} s)")
+                trained_s = float(component.record.get("seconds", float("nan")))
+                return component, (f"component network loaded from {path} (trained once in {trained_s:.1f} s, "
+                                   "counted in fit_s)"), trained_s
         with threadpool_limits(limits=1, user_api="blas"):
             component, result = train(self.domain, width=options["width"], depth=options["hidden_layers"],
                                       seed=options["seed"], trajectories=options["trajectories"],
@@ -164,11 +167,11 @@ class PinnSim(AbstractSolver):
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             component.save(path)
-        return component, f"component network trained in {component.record['seconds']:.1f} s ({result.message})"
+        return component, f"component network trained in {component.record['seconds']:.1f} s ({result.message})", 0.0
 
     def _fit(self) -> FitReport:
         threads = configure_threads(self.options["threads"])
-        component, how = self._component()
+        component, how, trained_s = self._component()
         self.component = component
         params = machine_parameters(self.case)
         self._beta = params["beta"]
@@ -180,7 +183,7 @@ class PinnSim(AbstractSolver):
         self._simulate(self.options["h"], np.array([self.case.p1_max]), check=False)  # compile one shape
         record = component.record
         return FitReport(seconds=0.0, iterations=int(record.get("iterations", 0)), loss=float(record.get("loss", np.nan)),
-                         message="; ".join(filter(None, (threads, how))))
+                         message="; ".join(filter(None, (threads, how))), reused_s=trained_s)
 
     def _schedule(self, t_max: float, P1: np.ndarray) -> Schedule:
         """The steps of every P1 (padded) to at least t_max and the horizon: h each on a step case;
