@@ -239,6 +239,9 @@ def test_a_case_s_training_budget_applies_to_its_pinn_units_only():
     budget = {(u.case.name, u.spec.solver, u.spec.config): dict(u.spec.options).get("max_iterations") for u in units}
     assert budget[("wscc9", "jax-pinn", "marching")] == 90
     assert budget[("wscc9", "pinnsim", "default")] is None  # trained once for every case: its own budget
+    # nor does a run-wide budget (the scaling suite's, --quick's) retrain it
+    scaling = default_specs(["jax-pinn", "pinnsim"], ["marching", "default"], DEFAULT.for_scaling())
+    assert {s.solver: dict(s.options).get("max_iterations") for s in scaling} == {"jax-pinn": 100, "pinnsim": None}
     assert budget[("smib-inference", "jax-pinn", "default")] is None  # no budget named for the SMIB
     assert budget[("wscc9", "numba-rk", "default")] is None  # classical adapters do not train
     assert {u.spec.variant for u in units if u.case.name == "wscc9" and u.spec.solver == "jax-pinn"} == {

@@ -40,7 +40,9 @@ def default_specs(
                 continue
             variants = [(), *(tuple(sorted(v.items())) for v in cls.VARIANTS)]
             if cls.trains:
-                budget = tuple(sorted((k, v) for k, v in settings.pinn_options.items() if k in cls.OPTIONS))
+                # the run's budget trains a model per case; one trained for every case keeps its own
+                budget = tuple(sorted((k, v) for k, v in settings.pinn_options.items()
+                                      if k in cls.OPTIONS and cls.trained_per_case))
                 for variant in variants:  # the plain spec first: it trains, its variants reuse the model
                     specs.extend(SolverSpec(name, config, tuple(sorted(budget + variant)), seed)
                                  for seed in settings.seeds)
