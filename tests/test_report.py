@@ -206,7 +206,7 @@ def _cct_rows() -> list[dict]:
     traj = np.stack([np.outer(np.sin(t), [1.0, -0.5, 0.2]), np.outer(t, [2.0, -1.0, 0.5])])
     return [{"suite": "cct", "case": "wscc9-bus8-line8-9", "solver": "numba-rk", "config": "rk4", "variant": "",
              "seed": -1, "trains": False, "status": "ok", "reference_cct_s": 0.183, "cct_error_s": 6e-5,
-             "bracket_s": 1e-3, "cct_s": 0.18306, "method": "bisection", "note": "", "solves": 10, "trajectories": 11,
+             "bracket_s": 1e-3, "cct_s": 0.18306, "stable_s": 0.18256, "unstable_s": 0.18356, "method": "bisection", "note": "", "solves": 10, "trajectories": 11,
              "median_s": 1e-3, "q25_s": 1e-3, "q75_s": 1e-3, "repeats": 5, "traj_t": t.tolist(), "traj_t_c": [0.173, 0.193], "traj_ref": traj.tolist(),
              "traj_pred": traj.tolist()}]
 

@@ -61,8 +61,7 @@ def _frame(frames: dict) -> pd.DataFrame:
         own = pd.Series(merged["fit_s"].to_numpy(), index=df.index)
     fit_s = df["seed_fit_s"].fillna(own) if "seed_fit_s" in df else own
     # a bracket left wider than the suite's (refusals inside it) carries no error to match
-    narrowed = ((df["unstable_s"] - df["stable_s"]) <= df["bracket_s"] * (1 + 1e-9)
-                if {"stable_s", "unstable_s"} <= set(df) else pd.Series(True, index=df.index))
+    narrowed = (df["unstable_s"] - df["stable_s"]) <= df["bracket_s"] * (1 + 1e-9)
     return df.assign(training_s=fit_s.where(df["surrogate"]), raw_error_s=df["cct_error_s"],
                      cct_error_s=df["cct_error_s"].where(narrowed))
 

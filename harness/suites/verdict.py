@@ -132,7 +132,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
         status = too_large(case, query.kind, query.t, query.P1)
         try:
             if status is None:
-                planned = [_plan(query, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
+                planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
                            for seed, model in seeds.items()]
                 for plan in planned:
                     _calls(plan)
@@ -155,17 +155,17 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     return [*(_row(plan, settings, rivals, surrogates) for plan in plans), *not_asked]
 
 
-def _plan(query: Query, seed: int, model: tuple[AbstractSolver, float, int], off: tuple[float, float],
+def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, float, int], off: tuple[float, float],
           paths: dict[str, AbstractSolver], case: Case, settings: Settings, rivals: Rivals, surrogates: Rivals) -> dict:
-    """One seed's verdict on `query` before its timing: the PINN's errors (`off`: its off-training
-    errors), its fastest path, the gate, and the two rivals' parts (`_side`)."""
+    """One seed's verdict on `query` (`about`: its row's columns that name it) before its timing: the
+    PINN's errors (`off`: its off-training errors), its fastest path, the gate, and the two rivals'
+    parts (`_side`)."""
     own, fit_s, iterations = model
     delta, omega = query_errors(own, case, query, off)
     path = _fastest_path(paths, query)
-    base = {"pinn_seed": seed, "kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
-            "distinct_p1": query.distinct_p1, "pinn_path": path, "t1_s": float(query.t[0]) if query.kind == "single point"
-            else np.nan, "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega,
-            "fit_s": fit_s, "fit_iterations": iterations}
+    base = {"pinn_seed": seed, **about, "pinn_path": path,
+            "t1_s": float(query.t[0]) if query.kind == "single point" else np.nan,
+            "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega, "fit_s": fit_s, "fit_iterations": iterations}
     gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
     return {"base": base, "query": query, "pinn": paths[path], "gate": gate, **_side(rivals, query, delta, omega, gate),
             "surrogate": _side(surrogates, query, delta, omega, gate)}
