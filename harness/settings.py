@@ -148,6 +148,7 @@ class Settings:
     fault_omit_marks: tuple[str, ...] = ()
     fault_omit_solvers: tuple[str, ...] = ()
     cache_dir: Path | None = Path(".cache/models")
+    partial_dir: Path | None = None  # where a unit of a suite marked `checkpoints` keeps its rows so far (the runner's)
     retrain: bool = False
     cases: tuple[str, ...] = ("smib-inference", *NETWORK_CASES, *BENCH_FAULT_CASES)
     case_pinn_options: dict[str, dict[str, Any]] = field(default_factory=dict)

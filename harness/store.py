@@ -6,10 +6,16 @@ and synced. The resume rule follows: a unit is done when its completion record i
 lines since the record before it hold its n rows. A crash leaves at most a torn tail after the last
 completion record; a damaged disk or an edit can spoil a row anywhere. Either way `--resume` sets
 the lines aside in `rows.jsonl.set-aside` (never deleted) and measures their units again.
+
+A long unit of work may also keep its rows so far in `<dir>/partial/` (a suite marked
+`checkpoints`: the verdict suite after each round), one whole file per unit (`write_partial`),
+so that a unit stopped part-way (a limit, a failure, a killed process) keeps what it measured
+(`read_partial`; `harness.run.runner` records it).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from collections.abc import Iterable
@@ -20,7 +26,7 @@ import pandas as pd
 
 from solvers.atomic import atomic_write
 
-__all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "unit_key"]
+__all__ = ["UNIT_COLUMNS", "RowStore", "StoreContents", "partial_path", "read_partial", "unit_key", "write_partial"]
 
 # The columns that name a unit of work; every row carries them.
 UNIT_COLUMNS = ("suite", "case", "solver", "config", "variant", "seed")
@@ -30,6 +36,40 @@ _COMPLETE = "_complete"
 def unit_key(row: dict) -> tuple:
     """The unit a row (or a completion record's key) belongs to."""
     return tuple(row.get(column) for column in UNIT_COLUMNS)
+
+
+def partial_path(directory: Path, key: dict) -> Path:
+    """The file in `directory` where the unit of work named by `key` (`UNIT_COLUMNS`) keeps its rows
+    so far: `<suite>-<16 hex digits of the key's digest>.json`."""
+    text = json.dumps(list(_named(key).values()), default=_jsonable)
+    return Path(directory) / f"{key['suite']}-{hashlib.sha256(text.encode('utf-8')).hexdigest()[:16]}.json"
+
+
+def write_partial(path: Path, key: dict, rows: list[dict], progress: str) -> None:
+    """Replace the file `path` whole (`atomic_write`) with the rows so far of the unit of work `key`
+    and how far it got (`progress`, words: "1 of 2 rounds")."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    record = {"key": _named(key), "progress": progress, "rows": rows}
+    atomic_write(path, json.dumps(record, default=_jsonable, allow_nan=True).encode("utf-8"))
+
+
+def read_partial(path: Path, key: dict) -> tuple[list[dict], str] | None:
+    """(rows, progress) that `write_partial` kept at `path` for the unit of work `key`; None when
+    there is no such file, or it is unreadable or another unit's (then it stays where it is)."""
+    try:
+        record = json.loads(path.read_bytes())
+    except (OSError, ValueError):
+        return None
+    if (not isinstance(record, dict) or not isinstance(record.get("rows"), list)
+            or record.get("key") != _named(key)
+            or not all(isinstance(row, dict) for row in record["rows"])):
+        return None
+    return record["rows"], str(record.get("progress", ""))
+
+
+def _named(key: dict) -> dict:
+    """The columns of `key` that name a unit of work, as JSON gives them back."""
+    return json.loads(json.dumps({column: key.get(column) for column in UNIT_COLUMNS}, default=_jsonable))
 
 
 class StoreContents(NamedTuple):
@@ -119,6 +159,7 @@ class RowStore:
         self.directory = Path(directory)
         self.path = self.directory / "rows.jsonl"
         self.set_aside_path = self.directory / "rows.jsonl.set-aside"
+        self.partial_dir = self.directory / "partial"
         if create:
             self.directory.mkdir(parents=True, exist_ok=True)
 

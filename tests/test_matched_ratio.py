@@ -44,7 +44,7 @@ def _verdict_row(rivals: Rivals, delta: float, omega: float) -> dict:
                      "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega},
             "query": QUERY, "rival": rival, "notes": notes, "gate": True,
             "match": rivals.match(rival, QUERY, delta, omega), "samples": (pinn_s, rival_s), "calls": (1, 1)}
-    return _row(plan, QUICK, rivals)
+    return _row(plan, QUICK.verdict_rounds, QUICK, rivals)
 
 
 def test_interpolation_is_linear_in_log_seconds_against_log_margin():

@@ -39,8 +39,14 @@ def pinn():
 
 
 @pytest.fixture(scope="module")
-def rows(pinn):
-    return verdict(pinn, CASE, SETTINGS)
+def checkpoints() -> list[tuple[list[dict], str]]:
+    """What the `rows` run handed its checkpoint: (rows so far, progress), one per call."""
+    return []
+
+
+@pytest.fixture(scope="module")
+def rows(pinn, checkpoints):
+    return verdict(pinn, CASE, SETTINGS, checkpoint=lambda rows, progress: checkpoints.append((rows, progress)))
 
 
 @pytest.mark.slow
@@ -159,6 +165,18 @@ def test_a_query_that_fails_or_does_not_fit_is_its_own_row_and_the_others_are_me
     assert rows[large]["status"] == "skipped: too large"
     measured = [r for name, r in rows.items() if "status" not in r]
     assert measured and all(r["samples"] > 0 for r in measured)
+
+
+@pytest.mark.slow
+def test_after_each_round_but_the_last_the_rows_so_far_go_to_the_checkpoint(rows, checkpoints):
+    assert [progress for _, progress in checkpoints] == ["1 of 2 rounds"]
+    kept = checkpoints[0][0]
+    assert [(r["query"], r["pinn_seed"]) for r in kept] == [(r["query"], r["pinn_seed"]) for r in rows]
+    for before, after in zip(kept, rows):
+        assert before["rounds"] == 1 and after["rounds"] == 2
+        assert before["samples"] == 4 and after["samples"] == 8  # one round of 4 pairs, then two
+        assert after["pinn_samples_s"][:4] == before["pinn_samples_s"]  # the same samples, extended
+        assert before["label"] == verdict_label(before["ratio_low"], before["ratio_high"])
 
 
 @pytest.mark.slow

@@ -9,7 +9,8 @@ BLAS and the PINNs' numba query kernels do; the classical numba kernels do not, 
 waits for the call, which for a verdict's rival the probe keeps within a few times `max_query_s`): it says on stderr that
 the interrupt was received, and on a second Ctrl-C ends the process. Every row written before is
 on disk (the row store fsyncs each, its completion record last), so what is lost is the unit of
-work in progress, which `--resume` measures again.
+work in progress, which `--resume` measures again, but for the rounds a checkpointing unit (the
+verdict suite's) finished, which `--resume` records (`harness.run.runner`).
 
 This module imports only the standard library (psutil only on the way out of a second Ctrl-C)."""
 

@@ -49,6 +49,10 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
             moved = _move_aside(out)
             print(f"[swingbench] --overwrite: the earlier run's {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
                   f"in {out}", file=sys.stderr)
+        elif store.partial_dir.exists():  # an earlier run stopped inside its first unit: not this run's rows
+            moved = _move_aside(out)
+            print(f"[swingbench] the rows an earlier run kept part-way, {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
+                  f"in {out}; --resume would have recorded them", file=sys.stderr)
         return store, None
     try:
         contents = store.prepare_resume()
@@ -62,7 +66,8 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
 
 
 # What a run writes that describes it, and nothing rewrites from its rows: kept with the rows
-ASIDE = ("rows.jsonl", "metadata.json")
+# (partial/: the rows so far of units stopped part-way, `harness.store.write_partial`)
+ASIDE = ("rows.jsonl", "metadata.json", "partial")
 
 
 def _move_aside(out: Path) -> list[tuple[Path, Path]]:
@@ -97,8 +102,12 @@ def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:
 
 
 def interrupted_message(store: RowStore, argv: list[str]) -> str:
-    """The one line printed on Ctrl-C: what was kept and the command that continues."""
+    """The one line printed on Ctrl-C: what was kept (completed units, and the rows so far of units
+    stopped part-way) and the command that continues."""
     kept = len(store.read().completed)
     argv = [arg for arg in argv if arg != "--overwrite"]  # what it moved aside is the earlier run, not this one
     again = shlex.join(["swingbench", *argv, *([] if "--resume" in argv else ["--resume"])])
-    return f"[swingbench] interrupted: {kept} completed unit(s) of work kept in {store.path}; continue with: {again}"
+    partial = len(list(store.partial_dir.glob("*.json"))) if store.partial_dir.is_dir() else 0
+    part = (f" and the rows so far of {partial} unit(s) stopped part-way in {store.partial_dir}, which --resume "
+            "records" if partial else "")
+    return f"[swingbench] interrupted: {kept} completed unit(s) of work kept in {store.path}{part}; continue with: {again}"

@@ -7,7 +7,11 @@ measured, so that an option value invalid on one of the cases stops the command 
 `execute` skips the units of work (a suite of a unit, or its fit) whose completion the store
 already records, runs the rest on an executor (in this process, joblib or Dask:
 `harness.run.executors`) and records each unit of work as it completes, with its rows in one write
-(`RowStore.record`). Failures and missing dependencies are rows (`failed` tells them); the run
+(`RowStore.record`). A unit of work of a suite marked `checkpoints` keeps its rows so far in the
+store's `partial/` folder as it goes (`harness.store.write_partial`): stopped part-way by a limit or
+a failure, it is recorded with those rows (each with `stopped`, saying how far it got and why);
+where the whole process died (killed, Ctrl-C), the next run in the folder (`--resume`) records
+them so instead of measuring it again. Failures and missing dependencies are rows (`failed` tells them); the run
 goes on, and the command says afterwards which units failed, with its exit status
 (`harness.cli.outcome`). An interrupt is no failure: one that compiled code wrapped in another
 exception stops the run as a plain Ctrl-C does (`harness.usage.failure_status`).
@@ -22,20 +26,24 @@ import time
 import traceback
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import replace
+from typing import Any
 
 from harness.measure.timing import blas_threads, pinned_threads
 from harness.model_cache import fit_or_load
 from harness.run.isolation import OverLimit, call_isolated
 from harness.run.plan import FIT, Unit, plan
 from harness.settings import Settings, SolverSpec
-from harness.store import RowStore
+from harness.store import RowStore, partial_path, read_partial, write_partial
 from harness.suites import SUITES
 from harness.usage import failure_status
 from solvers import UNAVAILABLE, solver_class
 from solvers.progress import progress_enabled
 from systems.cases import Case
 
-__all__ = ["check_units", "execute", "failed", "inline", "run_suites", "run_unit"]
+__all__ = ["RESUMED", "check_units", "execute", "failed", "inline", "kept", "run_suites", "run_unit"]
+
+# why the rows a unit of work kept stand for it when a later run in its folder finds them
+RESUMED = "the run ended before this unit of work did; the next run in its folder kept them"
 
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
@@ -81,7 +89,7 @@ def run_unit(unit: Unit, settings: Settings, todo: Iterable[str]) -> Iterator[tu
         print(f"[swingbench] {unit.label}: {status}", file=sys.stderr)
         base = {**unit.base(settings), "worker": f"{socket.gethostname()}:{os.getpid()}"}
         for work in (w for w in unit.works() if w in todo):
-            yield work, [{"suite": work, **base, "status": status}]
+            yield work, kept(settings, unit.work_key(work), status) or [{"suite": work, **base, "status": status}]
         return
     for work, rows in parts:
         yield work, [{**row, "peak_rss_mib": peak_mib} for row in rows]
@@ -121,13 +129,50 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
         for suite in suites:
             start = time.perf_counter()
             try:
-                rows = [{"status": skipped[suite]}] if suite in skipped else SUITES[suite].run(solver, unit.case, settings)
+                if suite in skipped:
+                    rows = [{"status": skipped[suite]}]
+                else:
+                    checkpoint = _checkpoint(settings, unit.work_key(suite), base) if SUITES[suite].checkpoints else None
+                    rows = SUITES[suite].run(solver, unit.case, settings,
+                                             **({"checkpoint": checkpoint} if checkpoint else {}))
             except Exception as exc:  # noqa: BLE001
-                rows = [{"status": failure_status(exc)}]
-                print(f"[swingbench] {unit.label} {suite}: {rows[0]['status']}", file=sys.stderr)
+                status = failure_status(exc)
+                print(f"[swingbench] {unit.label} {suite}: {status}", file=sys.stderr)
                 traceback.print_exc()
+                rows = kept(settings, unit.work_key(suite), status) or [{"status": status}]
             work_s = time.perf_counter() - start
             yield suite, [{"suite": suite, **base, "status": "ok", **row, "work_s": work_s} for row in rows]
+
+
+def _checkpoint(settings: Settings, key: dict[str, Any], base: dict) -> Callable[[list[dict], str], None] | None:
+    """The `checkpoint` given to a suite marked `checkpoints` for the unit of work `key` (None where
+    the run keeps no partial rows, `settings.partial_dir`): each call replaces the unit's file there
+    with its rows so far, as the unit would record them (`base` columns, status "ok")."""
+    if settings.partial_dir is None:
+        return None
+    path = partial_path(settings.partial_dir, key)
+
+    def checkpoint(rows: list[dict], progress: str) -> None:
+        try:
+            write_partial(path, key, [{"suite": key["suite"], **base, "status": "ok", **row} for row in rows], progress)
+        except OSError as exc:  # a folder this worker cannot write (a Dask worker elsewhere): it measures on
+            print(f"[swingbench] cannot keep the rows so far in {path}: {exc}", file=sys.stderr)
+
+    return checkpoint
+
+
+def kept(settings: Settings, key: dict[str, Any], why: str) -> list[dict] | None:
+    """The rows the unit of work `key` kept as it went (`_checkpoint`), each with `stopped`: how far
+    it got and `why` it stopped there; None when it kept none."""
+    if settings.partial_dir is None:
+        return None
+    found = read_partial(partial_path(settings.partial_dir, key), key)
+    if not found or not found[0]:
+        return None
+    rows, progress = found
+    print(f"[swingbench] {key['suite']} of {key['solver']}:{key['config']} on {key['case']}: {len(rows)} row(s) "
+          f"kept after {progress} ({why})", file=sys.stderr)
+    return [{**row, "stopped": f"after {progress}: {why}"} for row in rows]
 
 
 def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) -> list[tuple[str, list[dict]]]:
@@ -168,23 +213,38 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
     `RowStore.prepare_resume`) on `executor` (default: this process, `inline`)
     and record each as it completes. Returns counts of units of work: {"ok", "skipped", "failed",
     "lost"} (failed: a row of it `failed`; skipped: none failed, some declared a skip; lost: the
-    executor broke before returning them; nothing is recorded, `--resume` runs them)."""
+    executor broke before returning them; nothing is recorded, `--resume` runs them). A unit of work
+    that an earlier run in the store's folder stopped part-way, and that kept rows there (`kept`),
+    is recorded with them instead of being run."""
     done = set() if done is None else done
+    if settings.partial_dir is None:
+        settings = replace(settings, partial_dir=store.partial_dir)
+    counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
+
+    def record(unit: Unit, work: str, rows: list[dict]) -> None:
+        store.record(unit.work_key(work), rows)
+        partial_path(settings.partial_dir, unit.work_key(work)).unlink(missing_ok=True)
+        counts["failed" if any(map(failed, rows)) else
+               "ok" if all(r.get("status") == "ok" for r in rows) else "skipped"] += 1
+
     jobs = []
     for unit in units:
-        todo = tuple(w for w in unit.works() if unit.key(w) not in done)
+        todo = []
+        for work in (w for w in unit.works() if unit.key(w) not in done):
+            rows = kept(settings, unit.work_key(work), RESUMED)
+            if rows:  # a unit of work an earlier run in this folder stopped part-way: what it measured stands
+                record(unit, work, rows)
+            else:
+                todo.append(work)
         if todo:
-            jobs.append((unit, todo))
-    counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
+            jobs.append((unit, tuple(todo)))
     bar = _progress_bar(sum(len(todo) for _, todo in jobs), progress)
     try:
         for unit, work, rows in (executor or inline)(jobs, settings):
             if rows is None:
                 counts["lost"] += 1
             else:
-                store.record(unit.work_key(work), rows)
-                counts["failed" if any(map(failed, rows)) else
-                       "ok" if all(r.get("status") == "ok" for r in rows) else "skipped"] += 1
+                record(unit, work, rows)
             if bar:
                 bar.set_description(f"{unit.label} {work}")
                 bar.update(1)

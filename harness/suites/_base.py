@@ -29,6 +29,8 @@ class Suite:
     verdicts: bool = False  # measures the run's verdict PINNs only (`Settings.verdict_pinn`)
     own_query_path: bool = False  # times every query path of a model itself: not run for a query variant
     fault_cases: bool = False  # measures fault cases only (`Case.fault`): a step case gets a skipped row
+    checkpoints: bool = False  # takes `checkpoint=`, a callable (rows so far, progress in words) it calls as it
+    #                            goes: a unit stopped part-way keeps those rows (`harness.run.runner`)
 
     def applies(self, cls: type) -> bool:
         """Whether this suite measures adapters of class `cls`."""

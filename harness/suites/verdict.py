@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -103,7 +104,8 @@ def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> str:
     return min(seconds, key=seconds.__getitem__)
 
 
-def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
+def verdict(solver: AbstractSolver, case: Case, settings: Settings,
+            checkpoint: Callable[[list[dict], str], None] | None = None) -> list[dict]:
     """One row per query and seed (`pinn_seed`; the row's `seed` stays the unit's, whose rows
     these are): the PINN's errors (angles, speeds), its rival and the rival's
     errors, the paired samples (s per call) of both, their medians, the ratio rival / PINN with its
@@ -119,7 +121,8 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
     prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`). A query
     whose answer would not fit in memory (`harness.suites.latency.too_large`), or whose errors,
     paths or rivals raise, is one row with its status ("skipped: ..." or "failed: ..."), and the
-    other queries are measured."""
+    other queries are measured. After each round but the last, `checkpoint` (the runner's, where
+    it keeps a unit's rows so far) gets the rows as they stand then, with `rounds` the rounds done."""
     seeds = seed_models(solver, settings)
     rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
     plans: list[dict] = []
@@ -142,7 +145,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
         if status is not None:
             not_asked.append({**about, "status": status})
         print(f"[swingbench] verdict {case.name} {query.name}: {status or 'rivals chosen'}", file=sys.stderr)
-    for _ in range(settings.verdict_rounds):
+    for done in range(1, settings.verdict_rounds + 1):
         for plan in plans:
             for side in (plan, plan["surrogate"]):
                 if side["rival"] is None:
@@ -152,7 +155,10 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
                                    settings.verdict_pairs, *side["calls"], context_b=side["rival"].blas)
                 side["samples"][0].extend(a)
                 side["samples"][1].extend(b)
-    return [*(_row(plan, settings, rivals, surrogates) for plan in plans), *not_asked]
+        if checkpoint is not None and done < settings.verdict_rounds:
+            checkpoint([*(_row(plan, done, settings, rivals, surrogates) for plan in plans), *not_asked],
+                       f"{done} of {settings.verdict_rounds} rounds")
+    return [*(_row(plan, settings.verdict_rounds, settings, rivals, surrogates) for plan in plans), *not_asked]
 
 
 def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, float, int], off: tuple[float, float],
@@ -189,10 +195,10 @@ def _side(rivals: Rivals, query: Query, delta: float, omega: float, gate: bool) 
     return {"rival": rival, "notes": notes, "match": match, "samples": ([], [])}
 
 
-def _row(plan: dict, settings: Settings, rivals: Rivals, surrogates: Rivals | None = None) -> dict:
-    """A verdict's row: the plan's base, the ODE rival's columns and, where the plan has one
-    (`surrogates` given), the surrogate's (`_surrogate_columns`)."""
-    row = {**plan["base"], "rounds": settings.verdict_rounds, "gate": plan["gate"], "interval": INTERVAL,
+def _row(plan: dict, rounds: int, settings: Settings, rivals: Rivals, surrogates: Rivals | None = None) -> dict:
+    """A verdict's row after `rounds` rounds: the plan's base, the ODE rival's columns and, where
+    the plan has one (`surrogates` given), the surrogate's (`_surrogate_columns`)."""
+    row = {**plan["base"], "rounds": rounds, "gate": plan["gate"], "interval": INTERVAL,
            **_side_columns(plan, plan["gate"], settings, rivals, plan["query"])}
     if surrogates is None or "surrogate" not in plan:
         return row
@@ -217,7 +223,7 @@ def _side_columns(side: dict, gate: bool, settings: Settings, rivals: Rivals, qu
     return {"rivals_note": "; ".join([*side["notes"], match.note]) if match.note else notes,
             "matched_ratio": ratio * match.time_factor, "rival_margin": match.margin,
             "nearest_factor": match.nearest_factor, "rival": rival.label, "rival_rel_l2_delta": rival_delta,
-            "rival_rel_l2_omega": rival_omega, "pinn_samples_s": pinn_s, "rival_samples_s": rival_s,
+            "rival_rel_l2_omega": rival_omega, "pinn_samples_s": list(pinn_s), "rival_samples_s": list(rival_s),
             "samples": len(pinn_s), "pinn_median_s": float(np.median(pinn_s)),
             "rival_median_s": float(np.median(rival_s)), "calls_per_sample": list(side["calls"]),
             "ratio": ratio, "ratio_low": low, "ratio_high": high, "run_to_run": RUN_TO_RUN,
@@ -238,4 +244,4 @@ def _surrogate_columns(side: dict, gate: bool, settings: Settings, surrogates: R
     return {**renamed, "surrogate_fit_s": side["rival"].fit_s if side["rival"] is not None else math.nan}
 
 
-SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True, own_query_path=True)
+SUITE = Suite("verdict", verdict, trained_only=True, verdicts=True, own_query_path=True, checkpoints=True)
