@@ -42,14 +42,14 @@ def test_work_precision_times_a_compiled_adapter_at_every_t1_once():
 
 
 def test_latency_estimates_a_query_from_the_last_measured_one_linearly_and_never_faster():
-    from harness.suites.latency import _estimate
+    from harness.suites.latency import extrapolated_s
 
-    assert _estimate("throughput", 1000, {}) is None
-    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 0.5)]}) == pytest.approx(5.0)
-    assert _estimate("throughput", 1000, {"throughput": [(10, 0.1), (100, 10.0)]}) == pytest.approx(100.0)
+    assert extrapolated_s("throughput", 1000, {}) is None
+    assert extrapolated_s("throughput", 1000, {"throughput": [(10, 0.1), (100, 0.5)]}) == pytest.approx(5.0)
+    assert extrapolated_s("throughput", 1000, {"throughput": [(10, 0.1), (100, 10.0)]}) == pytest.approx(100.0)
     # one call slowed by a busy machine (1 ms -> 0.1 s): 0.1 s x 100, not 0.1 s x 100^3
-    assert _estimate("throughput", 1000, {"throughput": [(1, 1e-3), (10, 0.1)]}) == pytest.approx(10.0)
-    assert _estimate("points batch", 100, {"single point": [(1, 0.01), (1, 0.02)]}) == pytest.approx(2.0)
+    assert extrapolated_s("throughput", 1000, {"throughput": [(1, 1e-3), (10, 0.1)]}) == pytest.approx(10.0)
+    assert extrapolated_s("points batch", 100, {"single point": [(1, 0.01), (1, 0.02)]}) == pytest.approx(2.0)
 
 
 def test_a_query_whose_answer_does_not_fit_in_memory_is_skipped_with_its_size(monkeypatch):

@@ -75,7 +75,7 @@ def queries(case: Case, settings: Settings) -> list[tuple[str, str, np.ndarray, 
     return out
 
 
-def _estimate(kind: str, n: int, timed: dict[str, list[tuple[int, float]]]) -> float | None:
+def extrapolated_s(kind: str, n: int, timed: dict[str, list[tuple[int, float]]]) -> float | None:
     """Seconds a query of `kind` and size `n` (trajectories or points) should take: the last timed
     query of its kind (a batch of points: the last single point, the latest t1) times the ratio of
     the sizes, n / its size; None when nothing of the kind was timed yet. Linear in the work and
@@ -93,7 +93,7 @@ def _estimate(kind: str, n: int, timed: dict[str, list[tuple[int, float]]]) -> f
 def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict]:
     """Median, quartiles and minimum (s) of warm `solve` calls (delta and omega), and of one
     `solve_points` call for the batch of points; `per_query_s` = median / number of trajectories
-    or points. A query whose cost, extrapolated from the earlier queries of its kind (`_estimate`),
+    or points. A query whose cost, extrapolated from the earlier queries of its kind (`extrapolated_s`),
     exceeds `max_query_s`, or whose answer would not fit in memory (`too_large`), is skipped with a
     row that says so, rather than left out silently."""
     rows = []
@@ -103,7 +103,7 @@ def latency(solver: AbstractSolver, case: Case, settings: Settings) -> list[dict
         base = {"kind": kind, "query": name, "n_trajectories": n, "n_times": t.size if kind != "points batch" else 1,
                 "distinct_p1": int(np.unique(P1).size),
                 "t1_s": float(t[0]) if kind == "single point" else np.nan}
-        estimate = _estimate(kind, n, timed)
+        estimate = extrapolated_s(kind, n, timed)
         if (large := too_large(case, kind, t, P1)) is not None:
             rows.append({**base, "status": large})
             continue

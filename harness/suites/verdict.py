@@ -50,7 +50,7 @@ from harness.suites._base import Suite
 from harness.suites._matching import Match, Rivals
 from harness.suites._queries import Query, off_training_errors, query_errors, verdict_queries
 from harness.suites._seeds import seed_models
-from harness.suites.latency import too_large
+from harness.suites.latency import extrapolated_s, too_large
 from harness.usage import failure_status
 from solvers.base import AbstractSolver
 from systems.cases import Case
@@ -98,10 +98,11 @@ def query_paths(solver: AbstractSolver) -> dict[str, AbstractSolver]:
     return out
 
 
-def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> str:
-    """The path of `paths` whose warm call on `query` is fastest (`warm_call_s`)."""
+def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> tuple[str, float]:
+    """The path of `paths` whose warm call on `query` is fastest (`warm_call_s`), and that call's seconds."""
     seconds = {path: warm_call_s(query.call(solver)) for path, solver in paths.items()}
-    return min(seconds, key=seconds.__getitem__)
+    path = min(seconds, key=seconds.__getitem__)
+    return path, seconds[path]
 
 
 def verdict(solver: AbstractSolver, case: Case, settings: Settings,
@@ -119,9 +120,11 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     family's coarsest point, `matched_ratio` is NaN and `rivals_note` says the ratio is only an
     upper bound on that lead. The same columns of the second rival, the classical surrogate, are
     prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`). A query
-    whose answer would not fit in memory (`harness.suites.latency.too_large`), or whose errors,
-    paths or rivals raise, is one row with its status ("skipped: ..." or "failed: ..."), and the
-    other queries are measured. After each round but the last, `checkpoint` (the runner's, where
+    whose answer would not fit in memory (`harness.suites.latency.too_large`), or whose PINN call,
+    extrapolated from the earlier queries of its kind as the latency suite does
+    (`harness.suites.latency.extrapolated_s`, the fastest seed's warm call), would take over
+    `settings.max_query_s` (as a rival's does), or whose errors, paths or rivals raise, is one row
+    with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After each round but the last, `checkpoint` (the runner's, where
     it keeps a unit's rows so far) gets the rows as they stand then, with `rounds` the rounds done."""
     seeds = seed_models(solver, settings)
     rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
@@ -129,10 +132,14 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     not_asked: list[dict] = []
     paths = {seed: query_paths(pinn) for seed, (pinn, _, _) in seeds.items()}
     off = {seed: off_training_errors(pinn, case) for seed, (pinn, _, _) in seeds.items()}
+    timed: dict[str, list[tuple[int, float]]] = {}  # the PINN's warm seconds by kind of query, as in latency
     for query in verdict_queries(case, settings):
         about = {"kind": query.kind, "query": query.name, "n_trajectories": query.P1.size,
                  "distinct_p1": query.distinct_p1}
         status = too_large(case, query.kind, query.t, query.P1)
+        estimate = extrapolated_s(query.kind, query.P1.size, timed)
+        if status is None and estimate is not None and estimate > settings.max_query_s:
+            status = f"skipped: the PINN's call estimated {estimate:.3g} s, over {settings.max_query_s:g} s"
         try:
             if status is None:
                 planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
@@ -140,6 +147,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
                 for plan in planned:
                     _calls(plan)
                 plans += planned
+                timed.setdefault(query.kind, []).append((query.P1.size, min(plan["pinn_s"] for plan in planned)))
         except Exception as exc:  # noqa: BLE001 -- one query's failure is its row's, the others are still measured
             status = failure_status(exc)
         if status is not None:
@@ -168,12 +176,12 @@ def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, flo
     parts (`_side`)."""
     own, fit_s, iterations = model
     delta, omega = query_errors(own, case, query, off)
-    path = _fastest_path(paths, query)
+    path, pinn_s = _fastest_path(paths, query)
     base = {"pinn_seed": seed, **about, "pinn_path": path,
             "t1_s": float(query.t[0]) if query.kind == "single point" else np.nan,
             "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega, "fit_s": fit_s, "fit_iterations": iterations}
     gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
-    return {"base": base, "query": query, "pinn": paths[path], "gate": gate, **_side(rivals, query, delta, omega, gate),
+    return {"base": base, "query": query, "pinn": paths[path], "pinn_s": pinn_s, "gate": gate, **_side(rivals, query, delta, omega, gate),
             "surrogate": _side(surrogates, query, delta, omega, gate)}
 
 
