@@ -8,7 +8,7 @@ completion record; a damaged disk or an edit can spoil a row anywhere. Either wa
 the lines aside in `rows.jsonl.set-aside` (never deleted) and measures their units again.
 
 A long unit of work may also keep its rows so far in `<dir>/partial/` (a suite marked
-`checkpoints`: the verdict suite after each round), one whole file per unit (`write_partial`),
+`checkpoints`: the verdict suite after each round but the last), one whole file per unit (`write_partial`),
 so that a unit stopped part-way (a limit, a failure, a killed process) keeps what it measured
 (`read_partial`; `harness.run.runner` records it).
 """

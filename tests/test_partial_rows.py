@@ -15,7 +15,7 @@ import solvers
 from harness.cli import main
 from harness.run import runner
 from harness.run.isolation import OverLimit
-from harness.run.runner import RESUMED, run_suites
+from harness.run.runner import RESUMED, failed, run_suites
 from harness.settings import QUICK, Limits, SolverSpec
 from harness.store import RowStore, partial_path, read_partial, write_partial
 from harness.suites import SUITES, Suite
@@ -89,8 +89,25 @@ def test_a_unit_that_fails_part_way_records_the_rounds_it_finished(tmp_path, rou
     rows = _measured(store)
     assert [(r["query"], r["rounds"], r["status"]) for r in rows] == [("a", 1, "ok"), ("b", 1, "ok")]
     assert {r["stopped"] for r in rows} == {"after 1 of 2 rounds: failed: MemoryError: out of memory"}
-    assert {r["solver"] for r in rows} == {"idle"} and counts["ok"] == 2  # the unit's columns, as measured rows
+    assert {r["stopped_status"] for r in rows} == {"failed: MemoryError: out of memory"}
+    assert {r["solver"] for r in rows} == {"idle"}  # the unit's columns, as measured rows
+    assert counts["failed"] == 1 and counts["ok"] == 1 and all(map(failed, rows))  # still a failure: exit 1
     assert list(store.partial_dir.iterdir()) == []
+
+
+def test_an_earlier_runs_partial_file_is_never_taken_for_this_units_rows(tmp_path, rounds, monkeypatch):
+    """Left by a run that was not resumed (or by a worker elsewhere), it is replaced, never read."""
+    store = RowStore(tmp_path)
+    _run(store)  # a first run: the keys of its units
+    key = next({c: r[c] for c in ("suite", "case", "solver", "config", "variant", "seed")}
+               for r in store.rows() if r["suite"] == "rounds")
+    write_partial(partial_path(store.partial_dir, key), key, [{**key, "status": "ok", "query": "old"}], "1 of 2 rounds")
+    monkeypatch.setitem(SUITES, "rounds", Suite("rounds", lambda solver, case, settings, checkpoint=None: 1 / 0,
+                                                checkpoints=True))
+    _run(RowStore(tmp_path / "again"), replace(SETTINGS, partial_dir=store.partial_dir))
+    rows = _measured(RowStore(tmp_path / "again"))
+    assert [r["status"] for r in rows] == ["failed: ZeroDivisionError: division by zero"]
+    assert not partial_path(store.partial_dir, key).exists()
 
 
 def test_a_unit_killed_by_its_limit_records_the_rounds_it_finished(tmp_path, rounds, monkeypatch):
@@ -103,11 +120,12 @@ def test_a_unit_killed_by_its_limit_records_the_rounds_it_finished(tmp_path, rou
 
     monkeypatch.setattr(runner, "call_isolated", killed)
     store = RowStore(tmp_path)
-    _run(store, replace(SETTINGS, unit_limits=Limits(seconds=5.0)))
+    counts = _run(store, replace(SETTINGS, unit_limits=Limits(seconds=5.0)))
     fit, *rows = store.rows()
     assert fit["status"] == "skipped: out of time: still running after 5 s (killed)"  # nothing kept: as before
     assert [(r["query"], r["rounds"], r["stopped"]) for r in rows] == [
         ("a", 1, "after 1 of 2 rounds: skipped: out of time: still running after 5 s (killed)")]
+    assert counts["skipped"] == 2 and not any(map(failed, rows))
 
 
 def test_ctrl_c_keeps_the_finished_rounds_and_resume_records_them_without_measuring_again(tmp_path, rounds, capsys):
@@ -123,6 +141,7 @@ def test_ctrl_c_keeps_the_finished_rounds_and_resume_records_them_without_measur
     rows = _measured(store)
     assert [(r["query"], r["rounds"], r["stopped"]) for r in rows] == [
         (q, 1, f"after 1 of 2 rounds: {RESUMED}") for q in ("a", "b")]
+    assert not any("stopped_status" in r for r in rows)  # measured rows of fewer rounds: ok
     assert rounds == ["rounds"]  # measured once: the resumed run recorded what the first kept
     assert list(store.partial_dir.iterdir()) == []
 
@@ -133,7 +152,7 @@ def test_a_fresh_run_moves_an_earlier_runs_partial_rows_aside(tmp_path, rounds, 
     assert [r["query"] for r in _measured(RowStore(tmp_path))] == ["a", "b"]  # measured, not the old rows
     aside = [p for p in tmp_path.iterdir() if p.name.startswith("partial.")]
     assert len(aside) == 1 and len(list(aside[0].iterdir())) == 1
-    assert "the rows an earlier run kept part-way, partial moved to" in capsys.readouterr().err
+    assert "an earlier run that recorded no unit: its partial moved to" in capsys.readouterr().err
 
 
 def test_a_damaged_or_foreign_partial_file_is_not_read(tmp_path):
@@ -144,3 +163,18 @@ def test_a_damaged_or_foreign_partial_file_is_not_read(tmp_path):
     path.write_bytes(path.read_bytes()[:-5])
     assert read_partial(path, KEY) is None and path.exists()  # torn: left where it is
     assert partial_path(tmp_path, KEY) != partial_path(tmp_path, {**KEY, "config": "other"})
+
+
+def test_the_verdict_tables_note_a_unit_stopped_part_way():
+    import pandas as pd
+
+    from harness.report.verdicts import verdicts
+
+    row = {"suite": "verdict", "status": "ok", "case": "wscc9", "solver": "jax-pinn", "config": "default", "variant": "",
+           "seed": 0, "query": "grid", "kind": "grid", "label": "no rival", "rivals_note": "none as accurate",
+           "pinn_rel_l2_delta": 1e-3, "pinn_rel_l2_omega": 1e-3}
+    frame = pd.DataFrame([{**row, "pinn_seed": 0, "stopped": f"after 1 of 2 rounds: {RESUMED}"},
+                          {**row, "pinn_seed": 1, "stopped": f"after 1 of 2 rounds: {RESUMED}"}])
+    assert verdicts({"verdict": frame})["note"].tolist() == [
+        f"none as accurate; the unit stopped after 1 of 2 rounds: {RESUMED}"]
+    assert verdicts({"verdict": frame.drop(columns="stopped")})["note"].tolist() == ["none as accurate"]

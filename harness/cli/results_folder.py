@@ -49,10 +49,11 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
             moved = _move_aside(out)
             print(f"[swingbench] --overwrite: the earlier run's {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
                   f"in {out}", file=sys.stderr)
-        elif store.partial_dir.exists():  # an earlier run stopped inside its first unit: not this run's rows
+        elif store.partial_dir.exists():  # an earlier run that recorded no unit kept rows part-way: not this run's
             moved = _move_aside(out)
-            print(f"[swingbench] the rows an earlier run kept part-way, {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
-                  f"in {out}; --resume would have recorded them", file=sys.stderr)
+            print(f"[swingbench] an earlier run that recorded no unit: its "
+                  f"{' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} in {out} "
+                  "(--resume would have recorded its rows kept part-way)", file=sys.stderr)
         return store, None
     try:
         contents = store.prepare_resume()
@@ -71,7 +72,7 @@ ASIDE = ("rows.jsonl", "metadata.json", "partial")
 
 
 def _move_aside(out: Path) -> list[tuple[Path, Path]]:
-    """Rename each file of `ASIDE` in `out` to `<stem>.<UTC time>.<suffix>` beside it (the one time
+    """Rename each file (or folder) of `ASIDE` in `out` to `<stem>.<UTC time>.<suffix>` beside it (the one time
     for all, e.g. rows.20260314T091500Z.jsonl; -2, -3 ... after the time when one of those names is
     taken); return the (old, new) paths. `.gitignore` ignores the renamed files."""
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())

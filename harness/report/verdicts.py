@@ -122,6 +122,15 @@ def restated(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.assign(interval=INTERVAL)
 
 
+def _stopped(g: pd.DataFrame) -> str:
+    """The note on seed rows `g` of a unit stopped part-way (their `stopped`: `harness.run.runner.kept`):
+    fewer rounds than asked, so fewer samples; "" for whole ones."""
+    if "stopped" not in g:
+        return ""
+    stops = [s for s in dict.fromkeys(g["stopped"].dropna()) if s]
+    return "; ".join(f"the unit stopped {s}" for s in stops)
+
+
 def verdicts(frames: dict) -> pd.DataFrame:
     """One row per case, PINN (spec without seed) and query, in the run's order: the overall
     label, seeds by label, and the worst seed's rival, errors, medians, ratio and interval (stated
@@ -146,7 +155,8 @@ def verdicts(frames: dict) -> pd.DataFrame:
                     "ratio": worst.get("ratio", np.nan), "ratio_low": worst.get("ratio_low", np.nan),
                     "ratio_high": worst.get("ratio_high", np.nan), "samples": worst.get("samples", np.nan),
                     **{key: worst.get(key, np.nan) for key in ("matched_ratio", "rival_margin", "nearest_factor")},
-                    "note": worst.get("rivals_note", "") or "", **_surrogate(g), "_order": g["_order"].min()})
+                    "note": "; ".join(filter(None, (worst.get("rivals_note", "") or "", _stopped(g)))),
+                    **_surrogate(g), "_order": g["_order"].min()})
     return pd.DataFrame(out).sort_values("_order").drop(columns="_order").reset_index(drop=True)
 
 

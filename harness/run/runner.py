@@ -45,6 +45,7 @@ __all__ = ["RESUMED", "check_units", "execute", "failed", "inline", "kept", "run
 # why the rows a unit of work kept stand for it when a later run in its folder finds them
 RESUMED = "the run ended before this unit of work did; the next run in its folder kept them"
 
+
 def check_units(units: Iterable[Unit], settings: Settings,
                 describe: Callable[[Unit], str] = lambda unit: unit.label) -> None:
     """Build (not fit) the adapter of every unit as it would run, once per spec and case, so that an
@@ -132,7 +133,8 @@ def _run_unit_here(unit: Unit, settings: Settings, todo: Iterable[str]) -> Itera
                 if suite in skipped:
                     rows = [{"status": skipped[suite]}]
                 else:
-                    checkpoint = _checkpoint(settings, unit.work_key(suite), base) if SUITES[suite].checkpoints else None
+                    checkpoint = (_checkpoint(settings, unit.work_key(suite), base)
+                                  if SUITES[suite].checkpoints else None)
                     rows = SUITES[suite].run(solver, unit.case, settings,
                                              **({"checkpoint": checkpoint} if checkpoint else {}))
             except Exception as exc:  # noqa: BLE001
@@ -151,6 +153,7 @@ def _checkpoint(settings: Settings, key: dict[str, Any], base: dict) -> Callable
     if settings.partial_dir is None:
         return None
     path = partial_path(settings.partial_dir, key)
+    path.unlink(missing_ok=True)  # an earlier run's (`execute` adopted it where it should): never this unit's
 
     def checkpoint(rows: list[dict], progress: str) -> None:
         try:
@@ -163,7 +166,9 @@ def _checkpoint(settings: Settings, key: dict[str, Any], base: dict) -> Callable
 
 def kept(settings: Settings, key: dict[str, Any], why: str) -> list[dict] | None:
     """The rows the unit of work `key` kept as it went (`_checkpoint`), each with `stopped`: how far
-    it got and `why` it stopped there; None when it kept none."""
+    it got and `why` it stopped there, and, but for `RESUMED`, `stopped_status`: `why`, the status
+    the unit would have had without them ("failed: ...", "skipped: out of time: ..."), which
+    `failed` and the counts read as its status; None when it kept none."""
     if settings.partial_dir is None:
         return None
     found = read_partial(partial_path(settings.partial_dir, key), key)
@@ -172,7 +177,8 @@ def kept(settings: Settings, key: dict[str, Any], why: str) -> list[dict] | None
     rows, progress = found
     print(f"[swingbench] {key['suite']} of {key['solver']}:{key['config']} on {key['case']}: {len(rows)} row(s) "
           f"kept after {progress} ({why})", file=sys.stderr)
-    return [{**row, "stopped": f"after {progress}: {why}"} for row in rows]
+    stop = {"stopped": f"after {progress}: {why}", **({} if why == RESUMED else {"stopped_status": why})}
+    return [{**row, **stop} for row in rows]
 
 
 def run_unit_in_worker(unit: Unit, settings: Settings, todo: tuple[str, ...]) -> list[tuple[str, list[dict]]]:
@@ -200,10 +206,11 @@ def _progress_bar(total: int, enabled: bool | None):
 
 
 def failed(row: dict) -> bool:
-    """Whether `row` records a failure: a status that is neither "ok" nor a declared skip
-    ("skipped: ...": a missing dependency, a unit out of time or memory, a query the settings do
-    not measure), e.g. "failed: SolveError: ..."."""
-    status = str(row.get("status"))
+    """Whether `row` records a failure: a status (or, for the kept rows of a unit stopped part-way,
+    `stopped_status`: `kept`) that is neither "ok" nor a declared skip ("skipped: ...": a missing
+    dependency, a unit out of time or memory, a query the settings do not measure), e.g.
+    "failed: SolveError: ..."."""
+    status = str(row.get("stopped_status") or row.get("status"))
     return status != "ok" and not status.startswith("skipped")
 
 
@@ -213,10 +220,10 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
     `RowStore.prepare_resume`) on `executor` (default: this process, `inline`)
     and record each as it completes. Returns counts of units of work: {"ok", "skipped", "failed",
     "lost"} (failed: a row of it `failed`; skipped: none failed, some declared a skip; lost: the
-    executor broke before returning them; nothing is recorded, `--resume` runs them). A unit of work
-    that an earlier run in the store's folder stopped part-way, and that kept rows there (`kept`),
-    is recorded with them instead of being run."""
-    done = set() if done is None else done
+    executor broke before returning them; nothing is recorded, `--resume` runs them). When resuming
+    (`done` given), a unit of work that an earlier run in the store's folder stopped part-way, and
+    that kept rows there (`kept`), is recorded with them instead of being run."""
+    resuming, done = done is not None, set() if done is None else done
     if settings.partial_dir is None:
         settings = replace(settings, partial_dir=store.partial_dir)
     counts = {"ok": 0, "skipped": 0, "failed": 0, "lost": 0}
@@ -225,13 +232,13 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         store.record(unit.work_key(work), rows)
         partial_path(settings.partial_dir, unit.work_key(work)).unlink(missing_ok=True)
         counts["failed" if any(map(failed, rows)) else
-               "ok" if all(r.get("status") == "ok" for r in rows) else "skipped"] += 1
+               "ok" if all((r.get("stopped_status") or r.get("status")) == "ok" for r in rows) else "skipped"] += 1
 
     jobs = []
     for unit in units:
         todo = []
         for work in (w for w in unit.works() if unit.key(w) not in done):
-            rows = kept(settings, unit.work_key(work), RESUMED)
+            rows = kept(settings, unit.work_key(work), RESUMED) if resuming else None
             if rows:  # a unit of work an earlier run in this folder stopped part-way: what it measured stands
                 record(unit, work, rows)
             else:
@@ -268,5 +275,5 @@ def run_suites(
         raise ValueError(f"unknown suite(s) {', '.join(unknown)}; known: {', '.join(SUITES)}")
     units = plan(list(specs), list(cases), [SUITES[n] for n in names], settings).units
     check_units(units, settings)
-    done = store.prepare_resume().completed if resume else set()
+    done = store.prepare_resume().completed if resume else None
     return execute(units, settings, store, progress=progress, done=done)

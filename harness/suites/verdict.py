@@ -98,9 +98,11 @@ def query_paths(solver: AbstractSolver) -> dict[str, AbstractSolver]:
     return out
 
 
-def _fastest_path(paths: dict[str, AbstractSolver], query: Query) -> tuple[str, float]:
-    """The path of `paths` whose warm call on `query` is fastest (`warm_call_s`), and that call's seconds."""
-    seconds = {path: warm_call_s(query.call(solver)) for path, solver in paths.items()}
+def _fastest_path(paths: dict[str, AbstractSolver], query: Query, settings: Settings) -> tuple[str, float]:
+    """The path of `paths` whose warm call on `query` is fastest (`warm_call_s`: one timed call
+    past `max_call_s`, none past `max_query_s`), and that call's seconds."""
+    seconds = {path: warm_call_s(query.call(solver), slow_s=settings.max_call_s, limit_s=settings.max_query_s)
+               for path, solver in paths.items()}
     path = min(seconds, key=seconds.__getitem__)
     return path, seconds[path]
 
@@ -120,10 +122,10 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     family's coarsest point, `matched_ratio` is NaN and `rivals_note` says the ratio is only an
     upper bound on that lead. The same columns of the second rival, the classical surrogate, are
     prefixed `surrogate_` (`_side_columns`), with its fit seconds (`surrogate_fit_s`). A query
-    whose answer would not fit in memory (`harness.suites.latency.too_large`), or whose PINN call,
-    extrapolated from the earlier queries of its kind as the latency suite does
-    (`harness.suites.latency.extrapolated_s`, the fastest seed's warm call), would take over
-    `settings.max_query_s` (as a rival's does), or whose errors, paths or rivals raise, is one row
+    whose answer would not fit in memory (`harness.suites.latency.too_large`), whose PINN call
+    takes over `settings.max_query_s` (as a rival's may not; the fastest seed's warm call, or
+    before it is made, extrapolated from the earlier queries of its kind as the latency suite does:
+    `harness.suites.latency.extrapolated_s`), or whose errors, paths or rivals raise, is one row
     with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After each round but the last, `checkpoint` (the runner's, where
     it keeps a unit's rows so far) gets the rows as they stand then, with `rounds` the rounds done."""
     seeds = seed_models(solver, settings)
@@ -144,10 +146,14 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
             if status is None:
                 planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
                            for seed, model in seeds.items()]
-                for plan in planned:
-                    _calls(plan)
-                plans += planned
-                timed.setdefault(query.kind, []).append((query.P1.size, min(plan["pinn_s"] for plan in planned)))
+                fastest = min(plan["pinn_s"] for plan in planned)
+                timed.setdefault(query.kind, []).append((query.P1.size, fastest))
+                if fastest > settings.max_query_s:
+                    status = f"skipped: the PINN's call took {fastest:.3g} s, over {settings.max_query_s:g} s"
+                else:
+                    for plan in planned:
+                        _calls(plan)
+                    plans += planned
         except Exception as exc:  # noqa: BLE001 -- one query's failure is its row's, the others are still measured
             status = failure_status(exc)
         if status is not None:
@@ -176,7 +182,7 @@ def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, flo
     parts (`_side`)."""
     own, fit_s, iterations = model
     delta, omega = query_errors(own, case, query, off)
-    path, pinn_s = _fastest_path(paths, query)
+    path, pinn_s = _fastest_path(paths, query, settings)
     base = {"pinn_seed": seed, **about, "pinn_path": path,
             "t1_s": float(query.t[0]) if query.kind == "single point" else np.nan,
             "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega, "fit_s": fit_s, "fit_iterations": iterations}
