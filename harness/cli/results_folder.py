@@ -46,13 +46,9 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
             if not overwrite:
                 raise UsageError(f"swingbench {command}: --out {out} holds the rows of an earlier run ({store.path.name}): "
                                  "add --resume to continue it, or --overwrite to start again with its rows moved aside")
-            moved = _move_aside(out)
-            print(f"[swingbench] --overwrite: the earlier run's {' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} "
-                  f"in {out}", file=sys.stderr)
+            print(f"[swingbench] --overwrite: the earlier run's {_move_aside(out)} in {out}", file=sys.stderr)
         elif store.partial_dir.exists():  # an earlier run that recorded no unit kept rows part-way: not this run's
-            moved = _move_aside(out)
-            print(f"[swingbench] an earlier run that recorded no unit: its "
-                  f"{' and '.join(f'{a.name} moved to {b.name}' for a, b in moved)} in {out} "
+            print(f"[swingbench] an earlier run that recorded no unit: its {_move_aside(out)} in {out} "
                   "(--resume would have recorded its rows kept part-way)", file=sys.stderr)
         return store, None
     try:
@@ -71,10 +67,11 @@ def open_results(out: Path, resume: bool, command: str, same: dict[str, Any] | N
 ASIDE = ("rows.jsonl", "metadata.json", "partial")
 
 
-def _move_aside(out: Path) -> list[tuple[Path, Path]]:
-    """Rename each file (or folder) of `ASIDE` in `out` to `<stem>.<UTC time>.<suffix>` beside it (the one time
-    for all, e.g. rows.20260314T091500Z.jsonl; -2, -3 ... after the time when one of those names is
-    taken); return the (old, new) paths. `.gitignore` ignores the renamed files."""
+def _move_aside(out: Path) -> str:
+    """Rename each file (or folder) of `ASIDE` in `out` to `<stem>.<UTC time>.<suffix>` beside it
+    (the one time for all, e.g. rows.20260314T091500Z.jsonl; -2, -3 ... after the time when one of
+    those names is taken); return what moved, in words ("rows.jsonl moved to rows.<time>.jsonl and
+    ..."). `.gitignore` ignores the renamed files."""
     stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
     present = [out / name for name in ASIDE if (out / name).exists()]
     for n in itertools.count(1):
@@ -83,7 +80,7 @@ def _move_aside(out: Path) -> list[tuple[Path, Path]]:
             break
     for old, new in moved:
         os.rename(old, new)
-    return moved
+    return " and ".join(f"{old.name} moved to {new.name}" for old, new in moved)
 
 
 def _check_same_run(path: Path, same: dict[str, Any], command: str) -> None:

@@ -11,8 +11,8 @@ already records, runs the rest on an executor (in this process, joblib or Dask:
 store's `partial/` folder as it goes (`harness.store.write_partial`): stopped part-way by a limit or
 a failure, it is recorded with those rows (each with `stopped`, saying how far it got and why);
 where the whole process died (killed, Ctrl-C), the next run in the folder (`--resume`) records
-them so instead of measuring it again. Failures and missing dependencies are rows (`failed` tells them); the run
-goes on, and the command says afterwards which units failed, with its exit status
+them so instead of measuring it again. Failures and missing dependencies are rows (`failed` tells
+them); the run goes on, and the command says afterwards which units failed, with its exit status
 (`harness.cli.outcome`). An interrupt is no failure: one that compiled code wrapped in another
 exception stops the run as a plain Ctrl-C does (`harness.usage.failure_status`).
 """
@@ -205,12 +205,18 @@ def _progress_bar(total: int, enabled: bool | None):
     return tqdm(total=total, unit="work", file=sys.stderr, dynamic_ncols=True)
 
 
+def _status(row: dict) -> str:
+    """A row's status as the counts read it: for the kept rows of a unit stopped part-way, the
+    status it would have had without them (`stopped_status`, `kept`)."""
+    return str(row.get("stopped_status") or row.get("status"))
+
+
 def failed(row: dict) -> bool:
     """Whether `row` records a failure: a status (or, for the kept rows of a unit stopped part-way,
     `stopped_status`: `kept`) that is neither "ok" nor a declared skip ("skipped: ...": a missing
     dependency, a unit out of time or memory, a query the settings do not measure), e.g.
     "failed: SolveError: ..."."""
-    status = str(row.get("stopped_status") or row.get("status"))
+    status = _status(row)
     return status != "ok" and not status.startswith("skipped")
 
 
@@ -232,7 +238,7 @@ def execute(units: Iterable[Unit], settings: Settings, store: RowStore, executor
         store.record(unit.work_key(work), rows)
         partial_path(settings.partial_dir, unit.work_key(work)).unlink(missing_ok=True)
         counts["failed" if any(map(failed, rows)) else
-               "ok" if all((r.get("stopped_status") or r.get("status")) == "ok" for r in rows) else "skipped"] += 1
+               "ok" if all(_status(r) == "ok" for r in rows) else "skipped"] += 1
 
     jobs = []
     for unit in units:

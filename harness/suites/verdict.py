@@ -126,8 +126,9 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     takes over `settings.max_query_s` (as a rival's may not; the fastest seed's warm call, or
     before it is made, extrapolated from the earlier queries of its kind as the latency suite does:
     `harness.suites.latency.extrapolated_s`), or whose errors, paths or rivals raise, is one row
-    with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After each round but the last, `checkpoint` (the runner's, where
-    it keeps a unit's rows so far) gets the rows as they stand then, with `rounds` the rounds done."""
+    with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After
+    each round but the last, `checkpoint` (the runner's, where it keeps a unit's rows so far) gets
+    the rows as they stand then, with `rounds` the rounds done."""
     seeds = seed_models(solver, settings)
     rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
     plans: list[dict] = []
@@ -144,14 +145,15 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
             status = f"skipped: the PINN's call estimated {estimate:.3g} s, over {settings.max_query_s:g} s"
         try:
             if status is None:
-                planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings, rivals, surrogates)
+                planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings)
                            for seed, model in seeds.items()]
                 fastest = min(plan["pinn_s"] for plan in planned)
                 timed.setdefault(query.kind, []).append((query.P1.size, fastest))
-                if fastest > settings.max_query_s:
+                if fastest > settings.max_query_s:  # before the rivals are chosen: they are not needed
                     status = f"skipped: the PINN's call took {fastest:.3g} s, over {settings.max_query_s:g} s"
                 else:
                     for plan in planned:
+                        _choose_rivals(plan, rivals, surrogates)
                         _calls(plan)
                     plans += planned
         except Exception as exc:  # noqa: BLE001 -- one query's failure is its row's, the others are still measured
@@ -176,10 +178,10 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
 
 
 def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, float, int], off: tuple[float, float],
-          paths: dict[str, AbstractSolver], case: Case, settings: Settings, rivals: Rivals, surrogates: Rivals) -> dict:
-    """One seed's verdict on `query` (`about`: its row's columns that name it) before its timing: the
-    PINN's errors (`off`: its off-training errors), its fastest path, the gate, and the two rivals'
-    parts (`_side`)."""
+          paths: dict[str, AbstractSolver], case: Case, settings: Settings) -> dict:
+    """One seed's verdict on `query` (`about`: its row's columns that name it) before its rivals
+    (`_choose_rivals`) and its timing: the PINN's errors (`off`: its off-training errors), its
+    fastest path and that path's warm seconds (`pinn_s`), and the gate."""
     own, fit_s, iterations = model
     delta, omega = query_errors(own, case, query, off)
     path, pinn_s = _fastest_path(paths, query, settings)
@@ -187,8 +189,14 @@ def _plan(query: Query, about: dict, seed: int, model: tuple[AbstractSolver, flo
             "t1_s": float(query.t[0]) if query.kind == "single point" else np.nan,
             "pinn_rel_l2_delta": delta, "pinn_rel_l2_omega": omega, "fit_s": fit_s, "fit_iterations": iterations}
     gate = math.isfinite(delta) and math.isfinite(omega) and delta <= settings.verdict_gate
-    return {"base": base, "query": query, "pinn": paths[path], "pinn_s": pinn_s, "gate": gate, **_side(rivals, query, delta, omega, gate),
-            "surrogate": _side(surrogates, query, delta, omega, gate)}
+    return {"base": base, "query": query, "pinn": paths[path], "pinn_s": pinn_s, "gate": gate}
+
+
+def _choose_rivals(plan: dict, rivals: Rivals, surrogates: Rivals) -> None:
+    """Add to `plan` (`_plan`) the two rivals' parts (`_side`): the ODE rival's, the surrogate's."""
+    delta, omega = plan["base"]["pinn_rel_l2_delta"], plan["base"]["pinn_rel_l2_omega"]
+    plan.update(_side(rivals, plan["query"], delta, omega, plan["gate"]),
+                surrogate=_side(surrogates, plan["query"], delta, omega, plan["gate"]))
 
 
 def _calls(plan: dict) -> None:
