@@ -213,6 +213,19 @@ def test_query_errors_include_the_off_training_grid():
     assert SOLVERS["numba-rk"].compiled
 
 
+def test_the_reference_of_scattered_points_is_each_points_own_and_one_cache_entry():
+    from harness.suites._queries import _points_reference
+    from systems.reference import _reference, reference
+
+    t, P1 = np.array([0.3, 0.1, 0.3, 0.7]), np.array([CASE.p1_max, CASE.p1_min, CASE.p1_min, CASE.p1_max])
+    _reference.cache_clear()
+    delta, omega = _points_reference(CASE, t, P1)
+    assert _reference.cache_info().misses == 1 and delta.shape == omega.shape == (4, CASE.n)
+    for i in range(t.size):
+        d, o = reference(CASE, t[i:i + 1], P1[i:i + 1])
+        np.testing.assert_allclose((delta[i], omega[i]), (d[0, 0], o[0, 0]), rtol=0, atol=1e-12)
+
+
 def _frame(rows):
     import pandas as pd
 

@@ -77,13 +77,13 @@ def verdict_queries(case: Case, settings: Settings) -> list[Query]:
 
 
 def _points_reference(case: Case, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The reference at the pairs (t[i], P1[i]): one trajectory per distinct P1. Each (len(t), n)."""
-    delta, omega = np.empty((t.size, case.n)), np.empty((t.size, case.n))
-    for p1 in np.unique(P1):
-        at = np.flatnonzero(P1 == p1)
-        d, o = reference(case, t[at], np.array([p1]))
-        delta[at], omega[at] = d[0], o[0]
-    return delta, omega
+    """The reference at the pairs (t[i], P1[i]), each (len(t), n): one trajectory per distinct P1,
+    integrated in one `reference` call at the distinct times (one cache entry, not one per P1,
+    which 100 distinct P1 would cycle through the cache and recompute on every call)."""
+    times, at_t = np.unique(t, return_inverse=True)
+    values, at_p1 = np.unique(P1, return_inverse=True)
+    delta, omega = reference(case, times, values)
+    return delta[at_p1, at_t], omega[at_p1, at_t]
 
 
 def _errors(case: Case, delta, omega, ref_delta, ref_omega) -> tuple[float, float]:
