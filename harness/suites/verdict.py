@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import sys
 import tempfile
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -129,6 +130,7 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After
     each round but the last, `checkpoint` (the runner's, where it keeps a unit's rows so far) gets
     the rows as they stand then, with `rounds` the rounds done."""
+    start = time.perf_counter()
     seeds = seed_models(solver, settings)
     rivals, surrogates = _rivals(case, settings), _rivals(case, settings, surrogates=True)
     plans: list[dict] = []
@@ -160,7 +162,8 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
             status = failure_status(exc)
         if status is not None:
             not_asked.append({**about, "status": status})
-        print(f"[swingbench] verdict {case.name} {query.name}: {status or 'rivals chosen'}", file=sys.stderr)
+        print(f"[swingbench] verdict {case.name} {query.name}: {status or 'rivals chosen'} "
+              f"({(time.perf_counter() - start) / 60:.1f} min into the unit)", file=sys.stderr)
     for done in range(1, settings.verdict_rounds + 1):
         for plan in plans:
             for side in (plan, plan["surrogate"]):
@@ -171,6 +174,8 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
                                    settings.verdict_pairs, *side["calls"], context_b=side["rival"].blas)
                 side["samples"][0].extend(a)
                 side["samples"][1].extend(b)
+        print(f"[swingbench] verdict {case.name}: round {done} of {settings.verdict_rounds} timed "
+              f"({(time.perf_counter() - start) / 60:.1f} min into the unit)", file=sys.stderr)
         if checkpoint is not None and done < settings.verdict_rounds:
             checkpoint([*(_row(plan, done, settings, rivals, surrogates) for plan in plans), *not_asked],
                        f"{done} of {settings.verdict_rounds} rounds")
