@@ -134,3 +134,28 @@ def test_queries_keep_the_contract_and_learn_the_case(wscc9):
     assert np.linalg.norm(pred - truth) / np.linalg.norm(truth) < 2e-2
     with pytest.raises(ValueError, match="P1"):
         solver.solve(t, wscc9.p1_max + 1.0)
+
+
+def test_a_saved_model_loads_back_with_the_same_answers_and_refuses_another_case(wscc9, tmp_path):
+    from types import SimpleNamespace
+
+    from harness.model_cache import fit_or_load
+
+    t, P1 = np.linspace(0.0, wscc9.t_final, 9), np.linspace(wscc9.p1_min, wscc9.p1_max, 3)
+    settings = SimpleNamespace(cache_dir=tmp_path, retrain=False)
+    trained = make_solver(NAME, wscc9, **TINY)
+    report = fit_or_load(trained, settings)
+    loaded = make_solver(NAME, wscc9, **TINY)
+    again = fit_or_load(loaded, settings)
+    assert "(cached model)" in again.message and again.seconds == report.seconds
+    np.testing.assert_array_equal(loaded.solve(t, P1).delta, trained.solve(t, P1).delta)
+    np.testing.assert_array_equal(loaded.solve_points(t[:2], P1[:2]).omega, trained.solve_points(t[:2], P1[:2]).omega)
+    trained.save(tmp_path / "model")
+    with pytest.raises(ValueError, match="saved for case 'wscc9'"):
+        make_solver(NAME, CASES["kundur4"], **TINY).load(tmp_path / "model")
+    with np.load(tmp_path / "model.npz") as saved:
+        arrays = {key: saved[key] for key in saved.files}
+    arrays["thetas"][0, 0] = np.nan
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ValueError, match="bad.npz: holds non-finite weights"):
+        make_solver(NAME, wscc9, **TINY).load(tmp_path / "bad")

@@ -10,8 +10,10 @@ physics residual alone).
 
 from __future__ import annotations
 
+import json
 import math
 import time
+from pathlib import Path
 from typing import Any, ClassVar, Literal
 
 import jax
@@ -19,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, NotFittedError
 from solvers.classical.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.identification import Estimate
 from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
@@ -103,7 +105,9 @@ class ReducedPinn(AbstractSolver):
     the windows in turn by Levenberg-Marquardt; its message gives the seconds of the snapshots and
     of the basis apart, k and the energy kept. Multi-machine step cases only. Queries: one jitted
     XLA function a shape (grid or points), every P1 walked through the windows. Shapes as the
-    contract: (len(P1), len(t), n) and (n_s, n). Deterministic for a seed and thread count."""
+    contract: (len(P1), len(t), n) and (n_s, n). Deterministic for a seed and thread count.
+    `save(path)` writes `<path>.npz` (the windows' weights, the basis, the start, the network's
+    layout and the options), which `load(path)` reads back into a solver of the same case."""
 
     name: ClassVar[str] = "reduced-pinn"
     SCHEMA = ReducedOptions
@@ -119,6 +123,7 @@ class ReducedPinn(AbstractSolver):
     identifies: ClassVar[bool] = False
     takes_threads: ClassVar[bool] = True
     compiled: ClassVar[bool] = True
+    can_save: ClassVar[bool] = True
     QUERY_OPTIONS: ClassVar[frozenset[str]] = frozenset({"threads"})
 
     def _check_options(self) -> None:
@@ -176,17 +181,58 @@ class ReducedPinn(AbstractSolver):
             thetas = np.vstack([thetas, theta])
             iterations += result.iterations
             losses.append(result.loss)
-        self._queries = query_functions(layout)
-        with jax.enable_x64(True):
-            self._args = tuple(jnp.asarray(x) for x in (thetas, U, delta0, v0))
-        self._solve(np.linspace(0.0, case.t_final, 201), nodes[:1])  # compile the common shapes
-        self._solve_points(np.array([case.t_final]), nodes[:1])
+        self._set_model(layout, thetas, U, delta0, v0)
         worst = int(np.argmax(losses))
         message = "; ".join(filter(None, (
             threads, f"basis {options['basis']}: {basis.modes} modes (energy kept {basis.energy:.12g})",
             f"snapshots {nodes.size} x {t_data.size} times in {snapshot_s:.3g} s, basis in {basis_s:.3g} s",
             f"{count} windows, {iterations} LM iterations, largest loss {losses[worst]:.3g} in window {worst + 1}")))
         return FitReport(seconds=0.0, iterations=iterations, loss=float(sum(losses)), message=message)
+
+    def _set_model(self, layout: Layout, thetas: np.ndarray, U: np.ndarray, delta0: np.ndarray,
+                   v0: np.ndarray) -> None:
+        """Make the queries of a trained model: `thetas` (windows, parameters), `U` (n, k), `delta0`
+        (n,) rad, `v0` (k,) rad/s; compiles the common shapes."""
+        self._layout, self._queries = layout, query_functions(layout)
+        with jax.enable_x64(True):
+            self._args = tuple(jnp.asarray(x) for x in (thetas, U, delta0, v0))
+        self._solve(np.linspace(0.0, self.case.t_final, 201), np.array([self.case.p1_min]))
+        self._solve_points(np.array([self.case.t_final]), np.array([self.case.p1_min]))
+
+    def save(self, path) -> tuple[Path]:
+        """Write the fitted model to `<path>.npz`; returns that path."""
+        if not self.fitted:
+            raise NotFittedError(f"{self.name}: nothing to save before fit() (or load())")
+        out = Path(f"{path}.npz")
+        layout = self._layout
+        thetas, U, delta0, v0 = (np.asarray(x) for x in self._args)
+        with open(out, "wb") as fh:
+            np.savez(fh, thetas=thetas, U=U, delta0=delta0, v0=v0, sizes=np.asarray(layout.sizes),
+                     bounds=np.array([layout.window, layout.p_lo, layout.p_hi]),
+                     options=np.array(json.dumps({**self.options, "case": self.case.name})))
+        return (out,)
+
+    def load(self, path) -> ReducedPinn:
+        """Load what `save(path)` wrote (its options replace this solver's, but threads) and return
+        this solver, fitted. A ValueError naming the file when it holds non-finite weights or was
+        saved for another case (its machines or equilibrium differ)."""
+        file = Path(f"{path}.npz")
+        with np.load(file) as saved:
+            arrays = {key: saved[key] for key in saved.files}
+        if not all(np.isfinite(arrays[key]).all() for key in ("thetas", "U", "delta0", "v0", "bounds")):
+            raise ValueError(f"{file}: holds non-finite weights")
+        options = json.loads(str(arrays["options"]))
+        case = options.pop("case")
+        if arrays["U"].shape[0] != self.case.n or not np.allclose(arrays["delta0"], self.case.delta0, rtol=0, atol=1e-12):
+            raise ValueError(f"{file}: saved for case {case!r} ({arrays['U'].shape[0]} machines), not for this "
+                             f"solver's case {self.case.name!r} ({self.case.n} machines)")
+        self.options.update({k: v for k, v in options.items() if k not in self.QUERY_OPTIONS})
+        window, p_lo, p_hi = (float(x) for x in arrays["bounds"])
+        layout = Layout(tuple(int(x) for x in arrays["sizes"]), window, p_lo, p_hi)
+        configure_threads(self.options["threads"])
+        self._set_model(layout, arrays["thetas"], arrays["U"], arrays["delta0"], arrays["v0"])
+        self.fitted = True
+        return self
 
     def _window_data(self, layout: Layout, thetas: np.ndarray, w: int, nodes: np.ndarray, t_data: np.ndarray,
                      targets: tuple[np.ndarray, np.ndarray] | None, v0: np.ndarray,
