@@ -153,6 +153,8 @@ def test_a_saved_model_loads_back_with_the_same_answers_and_refuses_another_case
     trained.save(tmp_path / "model")
     with pytest.raises(ValueError, match="saved for case 'wscc9'"):
         make_solver(NAME, CASES["kundur4"], **TINY).load(tmp_path / "model")
+    with pytest.raises(ValueError, match="its record differs"):
+        make_solver(NAME, wscc9.with_params(1.0, 0.5), **TINY).load(tmp_path / "model")
     with np.load(tmp_path / "model.npz") as saved:
         arrays = {key: saved[key] for key in saved.files}
     arrays["thetas"][0, 0] = np.nan

@@ -10,6 +10,7 @@ physics residual alone).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -35,7 +36,7 @@ from solvers.pinn.reduced import (
     window_functions,
 )
 from solvers.threads import configure_threads
-from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations
+from systems.cases import NETWORK, STEP_SCENARIO, Case, Observations, case_record
 from systems.model import coupling
 
 __all__ = ["ReducedOptions", "ReducedPinn", "linear_basis"]
@@ -95,6 +96,11 @@ def linear_basis(case: Case, modes: int) -> Basis:
     static = np.linalg.lstsq(K, np.eye(case.n)[0], rcond=None)[0]
     q, _ = np.linalg.qr(np.column_stack([static, slow])[:, :modes])
     return Basis(np.ascontiguousarray(q), float("nan"))
+
+
+def _record_digest(case: Case) -> str:
+    """sha256 of `case_record(case)` (as the model cache's key writes it): a saved model's case."""
+    return hashlib.sha256(json.dumps(case_record(case), sort_keys=True, default=str).encode()).hexdigest()
 
 
 class ReducedPinn(AbstractSolver):
@@ -209,13 +215,14 @@ class ReducedPinn(AbstractSolver):
         with open(out, "wb") as fh:
             np.savez(fh, thetas=thetas, U=U, delta0=delta0, v0=v0, sizes=np.asarray(layout.sizes),
                      bounds=np.array([layout.window, layout.p_lo, layout.p_hi]),
-                     options=np.array(json.dumps({**self.options, "case": self.case.name})))
+                     options=np.array(json.dumps({**self.options, "case": self.case.name})),
+                     case_record=np.array(_record_digest(self.case)))
         return (out,)
 
     def load(self, path) -> ReducedPinn:
         """Load what `save(path)` wrote (its options replace this solver's, but threads) and return
         this solver, fitted. A ValueError naming the file when it holds non-finite weights or was
-        saved for another case (its machines or equilibrium differ)."""
+        saved for another case (its `case_record` differs: machines, parameters, ranges)."""
         file = Path(f"{path}.npz")
         with np.load(file) as saved:
             arrays = {key: saved[key] for key in saved.files}
@@ -223,9 +230,9 @@ class ReducedPinn(AbstractSolver):
             raise ValueError(f"{file}: holds non-finite weights")
         options = json.loads(str(arrays["options"]))
         case = options.pop("case")
-        if arrays["U"].shape[0] != self.case.n or not np.allclose(arrays["delta0"], self.case.delta0, rtol=0, atol=1e-12):
+        if str(arrays["case_record"]) != _record_digest(self.case):
             raise ValueError(f"{file}: saved for case {case!r} ({arrays['U'].shape[0]} machines), not for this "
-                             f"solver's case {self.case.name!r} ({self.case.n} machines)")
+                             f"solver's case {self.case.name!r} ({self.case.n} machines; its record differs)")
         self.options.update({k: v for k, v in options.items() if k not in self.QUERY_OPTIONS})
         window, p_lo, p_hi = (float(x) for x in arrays["bounds"])
         layout = Layout(tuple(int(x) for x in arrays["sizes"]), window, p_lo, p_hi)
