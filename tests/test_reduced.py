@@ -161,3 +161,16 @@ def test_a_saved_model_loads_back_with_the_same_answers_and_refuses_another_case
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(ValueError, match="bad.npz: holds non-finite weights"):
         make_solver(NAME, wscc9, **TINY).load(tmp_path / "bad")
+    arrays["thetas"][0, 0] = 0.0
+    np.savez(tmp_path / "short.npz", **{**arrays, "thetas": arrays["thetas"][:1]})
+    with pytest.raises(ValueError, match=r"short.npz: thetas has shape \(1, "):
+        make_solver(NAME, wscc9, **TINY).load(tmp_path / "short")
+    import json
+
+    options = json.loads(str(arrays["options"]))
+    np.savez(tmp_path / "opts.npz", **{**arrays, "options": np.array(json.dumps({**options, "width": -3}))})
+    with pytest.raises(ValueError, match="opts.npz: its options are not reduced-pinn's: .*width"):
+        make_solver(NAME, wscc9, **TINY).load(tmp_path / "opts")
+    np.savez(tmp_path / "wide.npz", **{**arrays, "options": np.array(json.dumps({**options, "width": 7}))})
+    with pytest.raises(ValueError, match="wide.npz: its layers .* are not those of its options"):
+        make_solver(NAME, wscc9, **TINY).load(tmp_path / "wide")

@@ -25,7 +25,15 @@ from threadpoolctl import threadpool_limits
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, NotFittedError
 from solvers.classical.snapshots import Basis, chebyshev_nodes, pod_basis, solver_snapshots
 from solvers.identification import Estimate
-from solvers.options import Fraction, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt, StrictBool
+from solvers.options import (
+    Fraction,
+    NonNegativeInt,
+    OptionSchema,
+    PositiveFloat,
+    PositiveInt,
+    StrictBool,
+    validate_options,
+)
 from solvers.pinn.optim import levenberg_marquardt
 from solvers.pinn.reduced import (
     Layout,
@@ -96,6 +104,18 @@ def linear_basis(case: Case, modes: int) -> Basis:
     static = np.linalg.lstsq(K, np.eye(case.n)[0], rcond=None)[0]
     q, _ = np.linalg.qr(np.column_stack([static, slow])[:, :modes])
     return Basis(np.ascontiguousarray(q), float("nan"))
+
+
+def _check_shapes(file: Path, layout: Layout, arrays: dict[str, np.ndarray], case: Case) -> None:
+    """A ValueError naming `file` unless its arrays fit `layout` and `case`: thetas (windows covering
+    t_final, n_params), U (n, k), delta0 (n,), v0 (k,)."""
+    n, k = case.n, layout.sizes[-1]
+    windows = max(1, math.ceil(case.t_final / layout.window - 1e-9))
+    expected = {"thetas": (windows, layout.n_params), "U": (n, k), "delta0": (n,), "v0": (k,)}
+    for key, shape in expected.items():
+        if arrays[key].shape != shape:
+            raise ValueError(f"{file}: {key} has shape {arrays[key].shape}, its layout and case "
+                             f"{case.name!r} need {shape}")
 
 
 def _record_digest(case: Case) -> str:
@@ -221,8 +241,9 @@ class ReducedPinn(AbstractSolver):
 
     def load(self, path) -> ReducedPinn:
         """Load what `save(path)` wrote (its options replace this solver's, but threads) and return
-        this solver, fitted. A ValueError naming the file when it holds non-finite weights or was
-        saved for another case (its `case_record` differs: machines, parameters, ranges)."""
+        this solver, fitted. A ValueError naming the file when it holds non-finite weights, was
+        saved for another case (its `case_record` differs: machines, parameters, ranges), holds
+        options the schema refuses or arrays whose shapes do not fit its layout and the case."""
         file = Path(f"{path}.npz")
         with np.load(file) as saved:
             arrays = {key: saved[key] for key in saved.files}
@@ -233,9 +254,19 @@ class ReducedPinn(AbstractSolver):
         if str(arrays["case_record"]) != _record_digest(self.case):
             raise ValueError(f"{file}: saved for case {case!r} ({arrays['U'].shape[0]} machines), not for this "
                              f"solver's case {self.case.name!r} ({self.case.n} machines; its record differs)")
-        self.options.update({k: v for k, v in options.items() if k not in self.QUERY_OPTIONS})
+        merged = {**self.options, **{k: v for k, v in options.items() if k not in self.QUERY_OPTIONS}}
+        try:
+            merged = validate_options(self.SCHEMA, merged, self.name)
+        except ValueError as exc:
+            raise ValueError(f"{file}: its options are not {self.name}'s: {exc}") from None
         window, p_lo, p_hi = (float(x) for x in arrays["bounds"])
         layout = Layout(tuple(int(x) for x in arrays["sizes"]), window, p_lo, p_hi)
+        hidden = (merged["width"],) * merged["hidden_layers"]
+        if layout.sizes[:-1] != (2, *hidden):
+            raise ValueError(f"{file}: its layers {layout.sizes} are not those of its options "
+                             f"(2, {merged['hidden_layers']} x {merged['width']}, k)")
+        _check_shapes(file, layout, arrays, self.case)
+        self.options = merged
         configure_threads(self.options["threads"])
         self._set_model(layout, arrays["thetas"], arrays["U"], arrays["delta0"], arrays["v0"])
         self.fitted = True
