@@ -80,6 +80,18 @@ def test_the_summary_adds_the_surrogate_only_where_the_rows_carry_it():
     assert (verdicts(_frames(True))["surrogate verdict"] == [PINN_FASTER, TIE]).all()
 
 
+def test_the_summary_counts_the_queries_not_timed_each_once_with_their_reason():
+    skipped = [{"suite": "verdict", "case": "wscc9", "solver": "jax-pinn", "config": "marching", "query": query,
+                "status": f"skipped: the PINN's call estimated {s} s, over 10 s"}
+               for query, s in (("1000 trajectories x 201 times", 11.2), ("10000 single points, one call", 122))]
+    frames = {"verdict": pd.DataFrame(_rows(False) + skipped)}
+    assert verdict_summary(frames) == verdict_summary(_frames(False)).replace(
+        "(1x);", "(1x); not timed on 2 (the PINN's call estimated over 10 s);")
+    failed = {**skipped[0], "query": "10 trajectories x 201 times", "status": "failed: SolveError: step 3"}
+    frames = {"verdict": pd.DataFrame(_rows(False) + skipped + [failed])}
+    assert "; not timed on 3 (skipped or failed, see its table);" in verdict_summary(frames)
+
+
 def test_a_case_no_surrogate_is_made_for_is_not_applicable_with_the_reason():
     fault = CASES[FAULT_CASES["wscc9"][0]]
     surrogates = Rivals(fault, SETTINGS, surrogates=True)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -254,15 +255,33 @@ def _tally(g: pd.DataFrame, verdict: str, ratio: str, sides: tuple[tuple[str, st
     return parts
 
 
+def _not_timed(frames: dict) -> dict[str, str]:
+    """case -> "; not timed on N (why)": the queries whose verdict rows were skipped or failed (the
+    PINN's call over the time limit, an answer over memory, an error), each query once; the reason
+    with its figures left out where every such row gives the same one."""
+    rows = frames.get("verdict")
+    if rows is None or rows.empty or "status" not in rows:
+        return {}
+    bad = rows[rows["status"].astype(str) != "ok"]
+    out = {}
+    for case, g in bad.groupby("case", sort=False):
+        reasons = {re.sub(r"estimated [^,]+, over", "estimated over", str(s).split(": ", 1)[-1])
+                   for s in g["status"]}
+        why = reasons.pop() if len(reasons) == 1 else "skipped or failed, see its table"
+        out[case] = f"; not timed on {g['query'].nunique()} ({why})"
+    return out
+
+
 def verdict_summary(frames: dict) -> str:
     """The answer in a few bullets, from the verdicts (`verdicts`): per case, how many queries each
     side wins and by how much (the range of the worst seed's ratio), the ties, where the PINN wins,
-    and the PINN's error in the angles; and, where the rows carry it, the same against the classical
-    surrogate; "" without verdicts."""
+    the queries not timed (`_not_timed`), and the PINN's error in the angles; and, where the rows
+    carry it, the same against the classical surrogate; "" without verdicts."""
     v = verdicts(frames)
     if v.empty:
         return ""
     out = []
+    skipped = _not_timed(frames)
     for case, g in v.groupby("case", sort=False):
         parts = _tally(g, "verdict", "ratio", ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the solver wins"),
                                                (TIE, "a tie on")))
@@ -274,5 +293,6 @@ def verdict_summary(frames: dict) -> str:
             against = ". Against the classical surrogate: " + "; ".join(_tally(
                 g, "surrogate verdict", "surrogate_ratio",
                 ((PINN_FASTER, "the PINN wins"), (CLASSICAL_FASTER, "the surrogate wins"), (TIE, "a tie on"))))
-        out.append(f"- **{case}**, {len(g)} queries: " + "; ".join(parts) + accuracy + against + ".")
+        out.append(f"- **{case}**, {len(g)} queries: " + "; ".join(parts) + skipped.get(case, "") + accuracy
+                   + against + ".")
     return "\n".join(out) + "\n"
