@@ -214,7 +214,8 @@ def fit_or_load(solver: AbstractSolver, settings: Any) -> FitReport:
     if cacheable and not settings.retrain:
         report = load_cached(solver, settings.cache_dir)
         if report is not None:
-            return report._replace(message=f"{report.message} (cached model)".strip())
+            solver.fit_report = report._replace(message=f"{report.message} (cached model)".strip())
+            return solver.fit_report
     report = solver.fit()
     if cacheable and math.isfinite(report.loss):  # a diverged model is not kept for the next run
         try:

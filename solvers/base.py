@@ -307,6 +307,7 @@ class AbstractSolver(abc.ABC):
             self.options = validate_options(self.SCHEMA, self.options, self.name)
         self._check_options()
         self.fitted = False
+        self.fit_report: FitReport | None = None  # the last fit's (or the model cache's load's)
 
     def _check_options(self) -> None:
         """Checks `SCHEMA` cannot express (they depend on the case or the machine), run on the
@@ -321,9 +322,9 @@ class AbstractSolver(abc.ABC):
         report = self._fit()
         seconds = time.perf_counter() - start
         self.fitted = True
-        if report is None:
-            return FitReport(seconds=seconds)
-        return report._replace(seconds=seconds + report.reused_s)
+        self.fit_report = FitReport(seconds=seconds) if report is None else report._replace(
+            seconds=seconds + report.reused_s)
+        return self.fit_report
 
     def solve(self, t_query, P1, extrapolate: bool = False) -> Trajectory:
         """delta (rad) and omega (rad/s) of every machine at times `t_query` (1-D, s, >= 0, any

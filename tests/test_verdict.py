@@ -146,3 +146,24 @@ def test_verdicts_of_a_case_without_an_infinite_bus_compare_at_the_coi_accuracy(
     (row,) = ladder({"accuracy": acc, "latency": lat}, GRID_QUERY).to_dict("records")
     assert row["pinn_rel_l2"] == 2e-5  # not the absolute 1e-5
     assert any(row[c] == 0.004 for c in row if c.endswith(": s"))  # ode's COI 1.5e-5 <= 2e-5: a rival
+
+
+def test_the_units_own_seed_costs_what_its_fit_or_the_model_caches_load_reported():
+    from types import SimpleNamespace
+    from typing import ClassVar
+
+    from harness.model_cache import fit_or_load
+    from harness.suites._seeds import seed_models
+    from solvers.null import NullSolver
+    from systems.cases import CASES
+
+    class Seeded(NullSolver):
+        OPTIONS: ClassVar[dict] = {"seed": 0}
+
+    settings = SimpleNamespace(cache_dir=None, retrain=False, verdict_seeds=(0, 1))
+    unit = Seeded(CASES["wscc9"])
+    report = fit_or_load(unit, settings)
+    models = seed_models(unit, settings)
+    assert models[0] == (unit, report.seconds, report.iterations) and report.seconds > 0
+    assert models[1][0] is not unit and models[1][0].options["seed"] == 1 and models[1][1] > 0
+    assert math.isnan(seed_models(Seeded(CASES["wscc9"]), settings)[0][1])  # not fitted: no cost known
