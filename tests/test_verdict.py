@@ -167,3 +167,29 @@ def test_the_units_own_seed_costs_what_its_fit_or_the_model_caches_load_reported
     assert models[0] == (unit, report.seconds, report.iterations) and report.seconds > 0
     assert models[1][0] is not unit and models[1][0].options["seed"] == 1 and models[1][1] > 0
     assert math.isnan(seed_models(Seeded(CASES["wscc9"]), settings)[0][1])  # not fitted: no cost known
+
+
+def test_a_many_trajectory_query_is_estimated_from_one_trajectorys_call_before_it_is_made():
+    import time
+    from types import SimpleNamespace
+
+    from harness.suites._queries import Query
+    from harness.suites.verdict import probe_s
+
+    calls = []
+
+    class Slow:  # 10 ms a trajectory
+        def solve(self, t, P1):
+            calls.append(np.size(P1))
+            time.sleep(0.01 * np.size(P1))
+
+        def solve_points(self, t, P1):
+            raise AssertionError("a batch of points is not probed")
+
+    settings = SimpleNamespace(max_call_s=1.0, max_query_s=0.5)
+    t = np.linspace(0.0, 1.0, 5)
+    grid = Query("grid", "grid 100x5", t, np.linspace(0.1, 0.2, 100))
+    assert 1.0 <= probe_s(Slow(), grid, settings) < 2.0  # 100 trajectories of 10 ms: over 0.5 s
+    assert set(calls) == {1}  # only its first trajectory was called
+    assert probe_s(Slow(), Query("trajectories", "1", t, grid.P1[:1]), settings) is None
+    assert probe_s(Slow(), Query("points batch", "p", t, t), settings) is None

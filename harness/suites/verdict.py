@@ -56,7 +56,7 @@ from harness.usage import failure_status
 from solvers.base import AbstractSolver
 from systems.cases import Case
 
-__all__ = ["query_paths", "verdict"]
+__all__ = ["probe_s", "query_paths", "verdict"]
 
 _RIVALS: dict[tuple[str, bool, int], Rivals] = {}  # one of each kind per case in a process: accuracies measured once
 
@@ -108,6 +108,17 @@ def _fastest_path(paths: dict[str, AbstractSolver], query: Query, settings: Sett
     return path, seconds[path]
 
 
+def probe_s(solver: AbstractSolver, query: Query, settings: Settings) -> float | None:
+    """Seconds `query` should take `solver` when nothing of its kind was timed yet: one warm call
+    of its first trajectory times their number (`extrapolated_s`'s linear rule), so a grid whose
+    call would run for minutes is not first measured (its errors and its call) to learn it; None
+    for a query of one trajectory or of points."""
+    if query.points or query.P1.size == 1:
+        return None
+    one = Query(query.kind, query.name, query.t, query.P1[:1])
+    return warm_call_s(one.call(solver), slow_s=settings.max_call_s, limit_s=settings.max_query_s) * query.P1.size
+
+
 def verdict(solver: AbstractSolver, case: Case, settings: Settings,
             checkpoint: Callable[[list[dict], str], None] | None = None) -> list[dict]:
     """One row per query and seed (`pinn_seed`; the row's `seed` stays the unit's, whose rows
@@ -126,7 +137,8 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
     whose answer would not fit in memory (`harness.suites.latency.too_large`), whose PINN call
     takes over `settings.max_query_s` (as a rival's may not; the fastest seed's warm call, or
     before it is made, extrapolated from the earlier queries of its kind as the latency suite does:
-    `harness.suites.latency.extrapolated_s`), or whose errors, paths or rivals raise, is one row
+    `harness.suites.latency.extrapolated_s`, or, for the first of its kind, from one trajectory's
+    call: `probe_s`), or whose errors, paths or rivals raise, is one row
     with its status ("skipped: ..." or "failed: ..."), and the other queries are measured. After
     each round but the last, `checkpoint` (the runner's, where it keeps a unit's rows so far) gets
     the rows as they stand then, with `rounds` the rounds done."""
@@ -143,8 +155,11 @@ def verdict(solver: AbstractSolver, case: Case, settings: Settings,
                  "distinct_p1": query.distinct_p1}
         status = too_large(case, query.kind, query.t, query.P1)
         estimate = extrapolated_s(query.kind, query.P1.size, timed)
+        how = ""
+        if status is None and estimate is None:
+            estimate, how = probe_s(solver, query, settings), " (one trajectory's call times their number)"
         if status is None and estimate is not None and estimate > settings.max_query_s:
-            status = f"skipped: the PINN's call estimated {estimate:.3g} s, over {settings.max_query_s:g} s"
+            status = f"skipped: the PINN's call estimated {estimate:.3g} s{how}, over {settings.max_query_s:g} s"
         try:
             if status is None:
                 planned = [_plan(query, about, seed, model, off[seed], paths[seed], case, settings)
