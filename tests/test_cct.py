@@ -291,10 +291,12 @@ def test_a_verdict_pinn_searches_with_each_verdict_seed(monkeypatch):
     monkeypatch.setitem(SOLVERS, ShiftedSurrogate.name, ShiftedSurrogate)
     case = CASES[CASE]
     settings = replace(SETTINGS, verdict_pinns=((ShiftedSurrogate.name, ("default",), ()),), verdict_seeds=(0, 1))
-    rows = cct(_fitted(ShiftedSurrogate, case), case, settings)
+    unit = _fitted(ShiftedSurrogate, case)
+    rows = cct(unit, case, settings)
     assert [row["pinn_seed"] for row in rows] == [0, 1]
     assert [row["cct_error_s"] for row in rows] == pytest.approx([SHIFT_S, SHIFT_S], abs=BRACKET_S / 2)
-    assert np.isnan(rows[0]["seed_fit_s"]) and 0.0 <= rows[1]["seed_fit_s"] < 1.0  # seed 1 trained here
+    assert rows[0]["seed_fit_s"] == unit.fit_report.seconds  # the unit's own seed: its fit's cost
+    assert 0.0 <= rows[1]["seed_fit_s"] < 1.0  # seed 1 trained here
     assert "traj_pred" in rows[0] and "traj_pred" not in rows[1]
     assert len(cct(_fitted(ShiftedSurrogate, case), case, SETTINGS)) == 1
 
