@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-from harness.model_cache import fit_or_load, load_cached
+from harness.model_cache import fit_or_load
 from harness.settings import Settings
 from solvers.base import AbstractSolver
 
@@ -15,12 +15,9 @@ __all__ = ["seed_models"]
 def seed_models(solver: AbstractSolver, settings: Settings) -> dict[int, tuple[AbstractSolver, float, int]]:
     """seed -> (fitted adapter, training seconds, iterations): the unit's own, then each other
     seed of `settings.verdict_seeds`, trained (or loaded from the model cache) here. The unit's own
-    seed's cost is its `fit_report` (its fit's, or the model cache's), else read from the model
-    cache (NaN and -1 without either: its fit row has it)."""
+    seed's cost is its `fit_report` (its fit's, or the model cache's load's; NaN and -1 without one)."""
     own = int(solver.options["seed"])
     report = solver.fit_report
-    if report is None and settings.cache_dir is not None:
-        report = load_cached(solver, settings.cache_dir)
     out = {own: (solver, math.nan if report is None else report.seconds, -1 if report is None else report.iterations)}
     for seed in settings.verdict_seeds:
         if seed in out:
