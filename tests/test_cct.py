@@ -24,7 +24,7 @@ from harness.suites import SUITES
 from harness.suites.accuracy import COI_DELTA, accuracy, stability_classes
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from solvers import SOLVERS
-from solvers.base import AbstractSolver, FitReport, SolveError
+from solvers.base import AbstractSolver, FitReport, PartialSolveError, SolveError
 from systems.cases import CASES, Case, standard_grid
 from systems.reference import STABILITY_CLASSES, STABLE_CLEARING, UNSTABLE_CLEARING, reference
 from systems.stability import ANGLE_LIMIT, reference_cct
@@ -92,6 +92,26 @@ class RefusingSurrogate(ShiftedSurrogate):
         return super()._solve(t, P1)
 
 
+class StoppingSurrogate(ShiftedSurrogate):
+    """The same surrogate, stopping part-way (`PartialSolveError`, as pinnsim does) every trajectory
+    cleared after t*: STOP_AFTER s after its crossing of the criterion for t_c <= t* + SEEN_S, and
+    half-way to it above (a refusal with no crossing seen)."""
+
+    name: ClassVar[str] = "stopping-surrogate"
+    SEEN_S: ClassVar[float] = 0.015
+    STOP_AFTER: ClassVar[float] = 0.05
+
+    def _solve(self, t, P1):
+        delta, omega = super()._solve(t, P1)
+        crossing = self.case.t_final * self._t_star / P1  # ANGLE_LIMIT reached (s)
+        held = np.where(P1 <= self._t_star, np.inf,
+                        np.where(P1 <= self._t_star + self.SEEN_S, crossing + self.STOP_AFTER, 0.5 * crossing))
+        if np.isinf(held).all():
+            return delta, omega
+        partial = np.where(t[None, :, None] < held[:, None, None], delta, np.nan)
+        raise PartialSolveError(f"{self.name}: stopped at {held}", partial, held)
+
+
 class StepsOnly(ReferenceFaults):
     """The same, declared not to integrate fault cases."""
 
@@ -149,20 +169,22 @@ def test_a_range_without_the_cct_gives_no_cct_and_says_why():
 
 def test_refused_clearing_times_are_neither_side_and_leave_the_bracket_wide_where_they_fall():
     """A refused batch is asked one clearing time at a time; the bracket runs from the last stable to
-    the first unstable clearing time over the refused ones between, a refused midpoint stops the
-    narrowing, and the row counts the refusals and says where the search stopped; refusals on the
-    whole unstable side leave no CCT."""
+    the first unstable clearing time over the refused ones between, bisection splits the widest
+    interval between its ends and the refusals until none is wider than the bracket's width, and the
+    row counts the refusals and says where the search stopped; refusals on the whole unstable side
+    leave no CCT."""
     case = CASES[CASE]
     t_star = reference_cct(case) + SHIFT_S
     solver = _fitted(RefusingSurrogate, case)
     found = grid_then_bisect(solver, 1e-2)
     assert found.stable_s <= t_star < found.unstable_s and found.unstable_s > t_star + RefusingSurrogate.REFUSED[1]
-    assert found.unstable_s - found.stable_s > BRACKET_S and found.note.startswith("refused t_c = ")
+    assert found.unstable_s - found.stable_s > BRACKET_S
+    assert found.note == "40 refused t_c in the bracket (0.2125 to 0.236875 s): left at 25.6 ms"
     # the grid (10 ms from 0.05 s): stable to 0.21 s, 0.22 and 0.23 s refused, 0.24 s unstable; one
-    # batch, then its 36 clearing times one at a time, then 5 midpoints of which 4 are refused, each
-    # below the last: the bracket's lower end bisected up to the refusals, its upper end left
-    assert (found.solves, found.trajectories, found.refused) == (42, 77, 6)
-    assert (found.unstable_s, round(found.stable_s, 9)) == (0.24, 0.211875) and found.stable_s <= t_star
+    # batch, then its 36 clearing times one at a time, then 41 midpoints, 38 of them refused: the
+    # bracket's ends bisected up to the refused interval (t*, t* + 25 ms] from either side
+    assert (found.solves, found.trajectories, found.refused) == (78, 113, 40)
+    assert (found.unstable_s, round(found.stable_s, 9)) == (0.2375, 0.211875) and found.stable_s <= t_star
     (row,) = cct(solver, case, SETTINGS)
     assert row["refused"] == found.refused and row["note"] == found.note and "traj_pred" not in row
     assert abs(row["cct_error_s"]) < (row["unstable_s"] - row["stable_s"])
@@ -174,6 +196,19 @@ def test_refused_clearing_times_are_neither_side_and_leave_the_bracket_wide_wher
     assert np.isnan(found.cct_s) and found.stable_s <= t_star and found.refused > 10
     assert found.note.startswith("no clearing time judged unstable up to p1_max = 0.4 s; ")
     assert bisect(_fitted(RefusesUnstable, case)).note.endswith("; 1 of 2 refused")
+
+
+def test_a_trajectory_stopped_after_its_crossing_is_unstable_and_one_stopped_before_is_refused():
+    """An adapter that says how far each trajectory held is judged on that part, batch and all: a
+    crossing seen before it stopped makes it unstable (the bracket narrows to the surrogate's CCT
+    with no batch asked again), one stopped before any crossing is refused and counted."""
+    case = CASES[CASE]
+    t_star = reference_cct(case) + SHIFT_S
+    found = grid_then_bisect(_fitted(StoppingSurrogate, case), 1e-2)
+    assert found.stable_s <= t_star < found.unstable_s and found.unstable_s - found.stable_s <= BRACKET_S * (1 + 1e-9)
+    grid = np.linspace(case.p1_min, case.p1_max, 36)
+    assert found.refused == int((grid > t_star + StoppingSurrogate.SEEN_S).sum()) > 0
+    assert found.solves == 1 + (found.trajectories - grid.size)  # the batch once, then one midpoint a call
 
 
 def test_a_bounded_adapter_refuses_a_clearing_time_outside_its_range():
@@ -270,7 +305,7 @@ def test_a_search_left_wide_by_refusals_is_no_rival_and_a_loss_and_shows_its_not
     """A bracket wider than 1 ms has no error to match, however close its midpoint: a classical one
     is no rival, a surrogate's seed loses, and the cells give the error with the note; the table
     counts the refusals."""
-    note = "refused t_c = 0.21 s: the bracket left at 20 ms"
+    note = "2 refused t_c in the bracket (0.205 to 0.215 s): left at 20 ms"
     wide = {"stable_s": 0.19, "unstable_s": 0.21, "note": note, "refused": 3}
     classical = [_search("coarse", 3.0, 0.1), _search("fine", 0.4, 1.0), _search("wide", 0.2, 0.01, **wide)]
     frames = suite_frames([*classical, _surrogate(0, -0.3, 0.5, 10.0)])

@@ -16,7 +16,7 @@ from conftest import small_options
 from scipy.sparse.linalg import splu
 
 from solvers import make_solver
-from solvers.base import SolveError
+from solvers.base import PartialSolveError, SolveError
 from solvers.pinn.component import INPUTS
 from solvers.pinn.pinnsim import FAULT_DOMAIN
 from solvers.pinn.simulator import impedance
@@ -146,7 +146,7 @@ def test_the_state_is_continuous_at_the_clearing_time_on_a_step_edge(fitted):
     """The machines' angle and speed carry over t_c (the voltage jumps there: the next step starts
     from the post-fault network's), and t_c is the edge of a step of each clearing time's query."""
     for t_c in (0.1, 0.15):
-        _, _, _, _, edges = fitted._simulate(t_c + 0.5, np.array([t_c]))
+        _, _, _, _, edges, _ = fitted._simulate(t_c + 0.5, np.array([t_c]))
         assert t_c in edges[0]
         near = fitted.solve(np.array([t_c - 1e-7, t_c, t_c + 1e-7]), t_c)
         np.testing.assert_allclose(near.delta[0, 1:], near.delta[0, :2], rtol=0, atol=1e-5)  # |omega| < 100 rad/s
@@ -171,3 +171,19 @@ def test_a_machine_that_slips_out_of_the_domain_names_the_step_t_c_and_the_input
                                          rf"\d+ \(t = [0-9.]+ s\) for t_c = 0\.35( a machine's ({inputs}) leaves the "
                                          r"component's trained domain| after .*)$"):
         fitted.solve(np.linspace(0.0, 3.0, 31), 0.35)
+
+
+def test_a_refused_call_carries_each_trajectory_up_to_its_first_failed_step(fitted):
+    """The refusal (`PartialSolveError`) holds each clearing time's angles before its first failed
+    step, the same as a query that stops before it, and NaN from that step's start on; a clearing
+    time that failed nowhere is whole."""
+    t, T_c = np.linspace(0.0, 3.0, 301), np.array([0.1, 0.35])
+    with pytest.raises(PartialSolveError) as caught:
+        fitted.solve(t, T_c)
+    error = caught.value
+    assert error.delta.shape == (2, t.size, fitted.case.n) and np.isinf(error.held[0]) and error.held[1] < 3.0
+    np.testing.assert_allclose(error.delta[0], fitted.solve(t, T_c[0]).delta[0], atol=1e-12)
+    before = t < error.held[1]
+    assert np.isnan(error.delta[1, ~before]).all() and np.isfinite(error.delta[1, before]).all()
+    if before.sum() > 1:  # the part that held is what a query of those times alone answers
+        np.testing.assert_allclose(error.delta[1, before], fitted.solve(t[before], T_c[1]).delta[0], atol=1e-12)

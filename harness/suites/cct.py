@@ -19,13 +19,17 @@ p1_max) has no CCT inside the range (NaN, the row's `note` says which).
 
 An adapter may refuse a clearing time (`SolveError`: pinnsim, for one, when a machine leaves its
 network's trained domain or Gauss-Newton does not converge). A refused batch is asked again one
-clearing time at a time; a refused clearing time is neither stable nor unstable. The bracket is
-then [the last clearing time judged stable, the first judged unstable above it], refused ones
-inside it left alone. A refused bisection midpoint becomes the top of the interval bisected next
-(the CCT still lies in the bracket, so a clearing time judged below the refusal still narrows it);
-where refusals leave nothing to bisect, the bracket stays wider than `BRACKET_S`. The row counts
-the distinct clearing times refused (`refused`) and its `note` says where the search stopped and
-why; with no clearing time judged stable (or unstable) the CCT is NaN.
+clearing time at a time; a refused clearing time is neither stable nor unstable. An adapter that
+says how far each trajectory held (`PartialSolveError`: pinnsim does) is judged on that part: a
+trajectory that crossed the criterion before it stopped is unstable (the reference, too, stops at
+its first crossing), one that stopped before any crossing is refused, and no batch is asked again.
+
+The bracket is then [the last clearing time judged stable, the first judged unstable above it];
+bisection splits the widest interval between its ends and the refused clearing times inside it
+(the CCT still lies in the bracket, so a clearing time judged on either side of a refusal still
+narrows it); where refusals leave nothing wider than `BRACKET_S` to bisect, the bracket stays wider.
+The row counts the distinct clearing times refused (`refused`) and its `note` says where the search
+stopped and why; with no clearing time judged stable (or unstable) the CCT is NaN.
 
 The search is timed whole, warm, as the latency suite times a query (`harness.measure.timing.time_call`; a search over
 `Settings.max_call_s` is timed once).
@@ -46,7 +50,7 @@ from harness.measure.timing import time_call
 from harness.settings import Settings
 from harness.suites._base import Suite
 from harness.suites._seeds import seed_models
-from solvers.base import AbstractSolver, SolveError
+from solvers.base import AbstractSolver, PartialSolveError, SolveError
 from systems.cases import Case
 from systems.model import relative_angles
 from systems.reference import reference
@@ -108,6 +112,10 @@ class _Judge:
         self.trajectories += t_c.size
         try:
             return is_unstable(self.solver.case, self.solver.solve(self.t, t_c).delta).astype(float)
+        except PartialSolveError as error:
+            labels = _partial_labels(self.solver.case, error)
+            self.refused_t_c.update(_key(x) for x in t_c[np.isnan(labels)])
+            return labels
         except SolveError:
             if t_c.size == 1:
                 self.refused_t_c.add(_key(t_c[0]))
@@ -121,6 +129,15 @@ class _Judge:
         return Search(stable_s, unstable_s, self.solves, self.trajectories, note, len(self.refused_t_c))
 
 
+def _partial_labels(case: Case, error: PartialSolveError) -> np.ndarray:
+    """(len(t_c),) float of a call the adapter stopped part-way: 1.0 where the criterion is crossed at
+    a time the trajectory still held (as the reference stops at its first crossing), 0.0 or 1.0 by
+    the criterion where it held throughout, NaN (refused) where it stopped before any crossing."""
+    angles = np.abs(relative_angles(case, error.delta))  # NaN where the trajectory no longer held
+    crossed = np.where(np.isnan(angles), 0.0, angles).max(axis=(-2, -1)) > ANGLE_LIMIT
+    return np.where(crossed, 1.0, np.where(np.isinf(error.held), 0.0, np.nan))
+
+
 def _key(t_c: float) -> float:
     """A clearing time (s) as the judge remembers a refusal: a bisection midpoint may differ from a
     grid point by an ulp."""
@@ -128,20 +145,28 @@ def _key(t_c: float) -> float:
 
 
 def _narrow(judge: _Judge, lo: float, hi: float) -> Search:
-    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`. A refused midpoint
-    becomes the top of the interval bisected next ([lo, refused]: a clearing time judged there still
-    moves lo up or hi down, as the CCT lies in [lo, hi]); when that interval is narrower than
-    `BRACKET_S` and [lo, hi] is not, the bracket stays wide and the note says where."""
-    top, wide = hi, BRACKET_S * (1 + 1e-9)
+    """Bisection of the bracket [lo stable, hi unstable] (s) down to `BRACKET_S`. A refused clearing
+    time inside it is neither side: the widest of the intervals between lo, the refused clearing
+    times inside and hi is bisected next, a clearing time judged stable moving lo up and one judged
+    unstable moving hi down (the CCT lies in [lo, hi]). When every such interval is narrower than
+    `BRACKET_S` and [lo, hi] is not, the bracket stays wide and the note says how many refused
+    clearing times are left in it."""
+    wide = BRACKET_S * (1 + 1e-9)
+    refused = {t_c for t_c in judge.refused_t_c if lo < t_c < hi}
     while hi - lo > wide:
-        if top - lo <= wide:
-            return judge.search(lo, hi, f"refused t_c = {top:.6g} s: the bracket left at {1e3 * (hi - lo):.3g} ms")
-        mid = 0.5 * (lo + top)
+        edges = np.array([lo, *sorted(t_c for t_c in refused if lo < t_c < hi), hi])
+        gaps = np.diff(edges)
+        j = int(np.argmax(gaps))
+        if gaps[j] <= wide:
+            inside = edges[1:-1]
+            return judge.search(lo, hi, f"{inside.size} refused t_c in the bracket ({inside[0]:.6g} to {inside[-1]:.6g} "
+                                        f"s): left at {1e3 * (hi - lo):.3g} ms")
+        mid = 0.5 * (edges[j] + edges[j + 1])
         verdict = judge.one(mid)
         if math.isnan(verdict):
-            top = mid
+            refused.add(_key(mid))
         elif verdict:
-            hi = top = mid
+            hi = mid
         else:
             lo = mid
     return judge.search(lo, hi)

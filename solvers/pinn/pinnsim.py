@@ -29,7 +29,7 @@ import jax.numpy as jnp
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, SolveError
+from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, PartialSolveError, SolveError
 from solvers.identification import Estimate
 from solvers.pinn.component import INPUTS, Component, Domain, train
 from solvers.pinn.pinnsim_options import FAULT_DOMAIN, H_MAX, STEP_SWEEP, PinnSimOptions
@@ -195,12 +195,14 @@ class PinnSim(AbstractSolver):
             return uniform_schedule(P1.size, h, max(1, int(np.ceil(t_end / h - 1e-9))))
         return fault_schedule(P1, h, t_end, max(case.p1_max, float(P1.max())), min(case.p1_min, float(P1.min())))
 
-    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int, np.ndarray]:
-        """(p, starts, coef, the last step simulated, the steps' edges (n_P padded, K + 1) s) of every
-        P1 over the steps that reach t_max (`_schedule`); SolveError for a CG or Newton failure or a
-        machine that leaves the trained domain, naming the step, its start and phase, and P1. One
-        compiled function a padded count of P1 (`_bucket`) serves every number of steps up to the
-        horizon."""
+    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int, np.ndarray,
+                                                                                  tuple[str, np.ndarray] | None]:
+        """(p, starts, coef, the last step simulated, the steps' edges (n_P padded, K + 1) s, the
+        failure) of every P1 over the steps that reach t_max (`_schedule`). The failure (`_check`,
+        None without `check` or when every step held): a CG or Newton failure or a machine that
+        leaves the trained domain, the one-line message of the first (naming the step, its start and
+        phase, and P1) and each P1's first failed step's start (s). One compiled function a padded
+        count of P1 (`_bucket`) serves every number of steps up to the horizon."""
         options, case = self.options, self.case
         padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
         schedule = self._schedule(t_max, padded)
@@ -219,14 +221,16 @@ class PinnSim(AbstractSolver):
         cg, cg_residual = np.asarray(cg)[:P1.size, :steps], np.asarray(cg_residual)[:P1.size, :steps]
         self.stats = {"steps": steps, "newton_mean": float(newton.mean()), "newton_max": int(newton.max()),
                       "cg_mean": float(cg.mean()), "cg_max": int(cg.max())}  # CG: a step's sum over its Newton
-        if check:
-            self._check(P1, schedule, np.asarray(iterations), size, excess, np.asarray(column), cg_residual)
-        return p_j, starts, coef, steps - 1, schedule.edges
+        failure = self._check(P1, schedule, np.asarray(iterations), size, excess, np.asarray(column),
+                              cg_residual) if check else None
+        return p_j, starts, coef, steps - 1, schedule.edges, failure
 
     def _check(self, P1: np.ndarray, schedule: Schedule, iterations: np.ndarray, size: np.ndarray,
-               excess: np.ndarray, column: np.ndarray, cg_residual: np.ndarray) -> None:
-        """The one-line SolveError of the first failed step (`_simulate`) of the first P1 with one, if
-        any: its CG, else its Newton, else a machine out of the domain."""
+               excess: np.ndarray, column: np.ndarray, cg_residual: np.ndarray) -> tuple[str, np.ndarray] | None:
+        """None when every step of every P1 held, else the one-line message of the first failed step
+        (`_simulate`) of the first P1 with one (its CG, else its Newton, else a machine out of the
+        domain) and each P1's held time (len(P1),) s: the start of its first failed step (its state
+        there is the last step's end), inf where none failed."""
         options, symbol = self.options, self.case.scenario.symbol
 
         def where(i: int, k: int) -> str:
@@ -238,27 +242,37 @@ class PinnSim(AbstractSolver):
         failed, outside = ~(size <= options["newton_tol"]), excess > 0
         bad = unsolved | failed | outside
         if not bad.any():
-            return
+            return None
+        first = bad.argmax(axis=1)  # each P1's first failed step (0 where none: masked below)
+        held = np.where(bad.any(axis=1), schedule.edges[np.arange(P1.size), first], np.inf)
         i, k = np.argwhere(bad)[0]  # the first P1 that fails, at its first failed step
         if unsolved[i, k]:
-            raise SolveError(f"{self.name}: CG did not converge {where(i, k)} within max_cg = {options['max_cg']} "
-                             f"iterations: relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
+            return (f"{self.name}: CG did not converge {where(i, k)} within max_cg = {options['max_cg']} iterations: "
+                    f"relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}"), held
         if failed[i, k]:
-            raise SolveError(f"{self.name}: Gauss-Newton did not converge {where(i, k)} after {int(iterations[i, k])} "
-                             f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")
-        raise SolveError(f"{self.name}: {where(i, k)} a machine's {INPUTS[int(column[i, k])]} leaves the "
-                         "component's trained domain")
+            return (f"{self.name}: Gauss-Newton did not converge {where(i, k)} after {int(iterations[i, k])} "
+                    f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}"), held
+        return (f"{self.name}: {where(i, k)} a machine's {INPUTS[int(column[i, k])]} leaves the component's trained "
+                "domain"), held
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        p, starts, coef, last, edges = self._simulate(float(t.max()), P1)
+        """The trajectories on t; a failed step raises `PartialSolveError`: each P1's angles at the
+        times before its first failed step, NaN from that step's start on."""
+        p, starts, coef, last, edges, failure = self._simulate(float(t.max()), P1)
         with jax.enable_x64(True):
             both = np.asarray(self._grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
                                          jnp.asarray(t)))
-        return both[0, :P1.size], both[1, :P1.size]
+        delta, omega = both[0, :P1.size], both[1, :P1.size]
+        if failure is not None:
+            message, held = failure
+            raise PartialSolveError(message, np.where(t[None, :, None] < held[:, None, None], delta, np.nan), held)
+        return delta, omega
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         values, which = np.unique(P1, return_inverse=True)
-        p, starts, coef, last, edges = self._simulate(float(t.max()), values)
+        p, starts, coef, last, edges, failure = self._simulate(float(t.max()), values)
+        if failure is not None:
+            raise SolveError(failure[0])
         with jax.enable_x64(True):
             both = np.asarray(self._points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
                                            jnp.asarray(which), jnp.asarray(t)))
