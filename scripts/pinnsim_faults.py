@@ -1,7 +1,8 @@
 """pinnsim (config "faults") on fault cases where the harness's accuracy suite cannot ask it: it
 queries clearing times on both sides of the CCT in one call, and past the CCT a machine slips
 poles, leaves any trained domain, and pinnsim refuses the whole call (SolveError). (The cct suite
-asks a refused batch again one clearing time at a time: `harness.suites.cct`.)
+asks a refused batch again one clearing time at a time, and judges a trajectory on the part that
+held: `harness.suites.cct`.)
 
 Per case, on the standard grid (`systems.cases.standard_grid`: 100 clearing times x 201 times):
 the clearing times below the reference CCT (`systems.stability.reference_cct`) in one call (each
@@ -9,7 +10,8 @@ alone if that call is refused), its errors against the reference (`systems.refer
 angles from the centre of inertia (rad) and the speeds (rad/s), as the accuracy suite's "reference,
 stable clearing times" rows measure them; then each clearing time at or above the CCT alone: refused
 (SolveError), or answered, and then judged by the cct suite's criterion (`is_unstable` at its
-times). Rows to OUT/pinnsim_faults.csv, the command and each fit's message to OUT/pinnsim_faults.json.
+times); of the refused, those whose trajectory crossed the criterion before it stopped (as the cct
+suite judges them unstable: `partial_labels`). Rows to OUT/pinnsim_faults.csv, the command and each fit's message to OUT/pinnsim_faults.json.
 
     python scripts/pinnsim_faults.py --out results/pinnsim-faults [--case NAME ...] [--option KEY=VALUE ...]
 """
@@ -26,9 +28,9 @@ import numpy as np
 
 from harness.measure import metrics
 from harness.suites.accuracy import COI_DELTA
-from harness.suites.cct import criterion_times
+from harness.suites.cct import criterion_times, partial_labels
 from solvers import make_solver
-from solvers.base import SolveError
+from solvers.base import PartialSolveError, SolveError
 from solvers.pinn.component_error import _option
 from systems.cases import CASES, standard_grid
 from systems.model import relative_angles
@@ -38,24 +40,29 @@ from systems.stability import is_unstable, reference_cct
 CASES_MEASURED = ("wscc9-bus8-line8-9", "kundur4-bus7-line7-8a")
 
 
-def _answers(solver, t: np.ndarray, T_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """(delta, omega) (len(T_c), len(t), n) (NaN where refused), answered (len(T_c),) bool, and the
-    refusals' messages: one call for all, else one call each."""
+def _answers(solver, t: np.ndarray, T_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str],
+                                                                np.ndarray]:
+    """(delta, omega) (len(T_c), len(t), n) (NaN where refused), answered (len(T_c),) bool, the
+    refusals' messages, and seen (len(T_c),) bool: refused, but past the cct suite's criterion before
+    the trajectory stopped (`partial_labels`); one call for all, else one call each."""
     n = solver.case.n
     try:
         traj = solver.solve(t, T_c)
-        return traj.delta, traj.omega, np.ones(T_c.size, bool), []
+        return traj.delta, traj.omega, np.ones(T_c.size, bool), [], np.zeros(T_c.size, bool)
     except SolveError:
         pass
     delta, omega = np.full((2, T_c.size, t.size, n), np.nan)
-    answered, messages = np.zeros(T_c.size, bool), []
+    answered, seen, messages = np.zeros(T_c.size, bool), np.zeros(T_c.size, bool), []
     for i, t_c in enumerate(T_c):
         try:
             traj = solver.solve(t, float(t_c))
             delta[i], omega[i], answered[i] = traj.delta[0], traj.omega[0], True
+        except PartialSolveError as exc:
+            messages.append(str(exc))
+            seen[i] = partial_labels(solver.case, exc)[0] == 1.0
         except SolveError as exc:
             messages.append(str(exc))
-    return delta, omega, answered, messages
+    return delta, omega, answered, messages, seen
 
 
 def measure(name: str, options: dict) -> tuple[list[dict], str]:
@@ -67,7 +74,7 @@ def measure(name: str, options: dict) -> tuple[list[dict], str]:
     cct = reference_cct(case)
     stable = T_c < cct
     base = {"case": name, "reference_cct_s": cct, "fit_s": report.seconds}
-    delta, omega, ok, messages = _answers(solver, t, T_c[stable])
+    delta, omega, ok, messages, _ = _answers(solver, t, T_c[stable])
     ref_delta, ref_omega = reference(case, t, T_c[stable])
     rows = []
     for quantity, unit, pred, ref in ((COI_DELTA, "rad", relative_angles(case, delta[ok]),
@@ -80,11 +87,13 @@ def measure(name: str, options: dict) -> tuple[list[dict], str]:
                      "judged_unstable": int(is_unstable(case, delta[ok]).sum()) if ok.any() else 0,
                      "first_refusal": messages[0] if messages else ""})
     tc = criterion_times(case)
-    answers = _answers(solver, tc, T_c[~stable]) if (~stable).any() else (None, None, np.zeros(0, bool), [])
+    none = (None, None, np.zeros(0, bool), [], np.zeros(0, bool))
+    answers = _answers(solver, tc, T_c[~stable]) if (~stable).any() else none
     judged = is_unstable(case, answers[0][answers[2]]) if answers[2].any() else np.zeros(0, bool)
     rows.append({**base, "quantity": "stability", "against": UNSTABLE_CLEARING, "unit": "clearing times",
                  "clearing_times": int((~stable).sum()), "answered": int(answers[2].sum()),
-                 "judged_unstable": int(judged.sum()), "first_refusal": answers[3][0] if answers[3] else ""})
+                 "judged_unstable": int(judged.sum()), "seen_unstable_before_refusal": int(answers[4].sum()),
+                 "first_refusal": answers[3][0] if answers[3] else ""})
     return rows, report.message
 
 

@@ -56,7 +56,8 @@ from systems.model import relative_angles
 from systems.reference import reference
 from systems.stability import ANGLE_LIMIT, is_unstable, reference_cct
 
-__all__ = ["BRACKET_S", "CRITERION_DT_S", "Search", "bisect", "cct", "criterion_times", "grid_then_bisect"]
+__all__ = ["BRACKET_S", "CRITERION_DT_S", "Search", "bisect", "cct", "criterion_times", "grid_then_bisect",
+           "partial_labels"]
 
 BRACKET_S = 1e-3  # s: the width of the bracket every method narrows the CCT to
 CRITERION_DT_S = 0.01  # s: the spacing of the times the criterion is judged at
@@ -113,7 +114,7 @@ class _Judge:
         try:
             return is_unstable(self.solver.case, self.solver.solve(self.t, t_c).delta).astype(float)
         except PartialSolveError as error:
-            labels = _partial_labels(self.solver.case, error)
+            labels = partial_labels(self.solver.case, error)
             self.refused_t_c.update(_key(x) for x in t_c[np.isnan(labels)])
             return labels
         except SolveError:
@@ -129,7 +130,7 @@ class _Judge:
         return Search(stable_s, unstable_s, self.solves, self.trajectories, note, len(self.refused_t_c))
 
 
-def _partial_labels(case: Case, error: PartialSolveError) -> np.ndarray:
+def partial_labels(case: Case, error: PartialSolveError) -> np.ndarray:
     """(len(t_c),) float of a call the adapter stopped part-way: 1.0 where the criterion is crossed at
     a time the trajectory still held (as the reference stops at its first crossing), 0.0 or 1.0 by
     the criterion where it held throughout, NaN (refused) where it stopped before any crossing."""
@@ -159,8 +160,9 @@ def _narrow(judge: _Judge, lo: float, hi: float) -> Search:
         j = int(np.argmax(gaps))
         if gaps[j] <= wide:
             inside = edges[1:-1]
-            return judge.search(lo, hi, f"{inside.size} refused t_c in the bracket ({inside[0]:.6g} to {inside[-1]:.6g} "
-                                        f"s): left at {1e3 * (hi - lo):.3g} ms")
+            where = f"at {inside[0]:.6g} s" if inside.size == 1 else f"{inside[0]:.6g} to {inside[-1]:.6g} s"
+            return judge.search(lo, hi, f"{inside.size} refused t_c in the bracket ({where}): left at "
+                                        f"{1e3 * (hi - lo):.3g} ms")
         mid = 0.5 * (edges[j] + edges[j + 1])
         verdict = judge.one(mid)
         if math.isnan(verdict):
