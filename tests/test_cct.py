@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from harness.report.cct import cct_headline, cct_table
+from harness.report.cct import cct_headline, cct_summary, cct_table
 from harness.report.cct_plot import cct_plot
 from harness.report.frames import case_sections, suite_frames
 from harness.report.labels import Labels
@@ -361,3 +361,22 @@ def test_accuracy_counts_the_clearing_times_a_surrogate_puts_on_the_wrong_side_o
     between = P1[(P1 >= reference_cct(case)) & (P1 <= reference_cct(case) + SHIFT_S)]
     assert between.size == 1 and classes["misclassified"] == 1
     assert classes["classified_correct"] == 0.99 and classes["misclassified_t_c"] == f"{between[0]:.6g}"
+
+
+def test_the_summary_counts_the_cases_a_pinn_finds_the_cct_on_and_its_time_against_the_classical_search():
+    """One bullet per PINN configuration over its fault cases: found (with how far, and where
+    refusals left the bracket wide), none (named), the fastest classical search within 1 ms over
+    the PINN's slowest seed, and the break-even; nothing without a surrogate."""
+    other = "wscc9-bus8-line8-9"
+    classical = [_search("fine", 0.4, 1.0), {**_search("fine", 0.1, 2.0), "case": other}]
+    wide = {"stable_s": 0.19, "unstable_s": 0.21, "note": "1 refused t_c in the bracket (at 0.2 s): left at 20 ms"}
+    none = {"cct_s": float("nan"), "cct_error_s": float("nan"), "note": "no clearing time judged unstable"}
+    pinns = [_surrogate(0, -0.3, 500.0, 10.0), _surrogate(1, 0.2, 400.0, 10.0),
+             {**_surrogate(0, 2.0, 1000.0, 10.0), "case": other, **wide}]
+    text = cct_summary(suite_frames([*classical, *pinns]))
+    assert text == ("- **CCT of 2 fault cases**, `pinn fault`: found on 2, 0.3 ms to 2 ms from the reference (refusals "
+                    "left the bracket wider than 1 ms on 1); its search 0.5 s to 1 s, the fastest classical search "
+                    "within 1 ms 0.002x to 0.002x as long; break-even never on 1 of 2.\n")
+    text = cct_summary(suite_frames([*classical, {**pinns[2], **none}]))
+    assert "found on 0; none on 1 (wscc9-bus8-line8-9)" in text
+    assert cct_summary(suite_frames(classical)) == ""

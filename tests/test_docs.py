@@ -98,7 +98,7 @@ def test_report_at_scale_writes_only_its_block_and_refuses_what_it_cannot_write(
     assert "old" not in written and written.count("- **case118**, 11 queries") == 2
     (tmp_path / "bare.md").write_text("no markers\n")
     for argv, message in ((["report", str(ROOT / "results" / "pinnsim-claim"), "--at-scale", str(readme)],
-                           "has no verdict rows"),
+                           "has no verdict rows and no PINN's CCT search"),
                           (["report", str(run), str(run)], "one DIR at a time"),
                           (["report", str(run), "--at-scale", str(tmp_path / "none.md")], "cannot read"),
                           (["report", str(run), "--at-scale", str(tmp_path / "bare.md")], "has no <!-- swingbench")):

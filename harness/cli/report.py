@@ -37,8 +37,8 @@ def add_parser(sub) -> None:
     report = sub.add_parser("report", help="re-render a results folder's tables, figures and pages from its rows",
                             description="Read DIR/rows.jsonl and rewrite DIR's CSV and Markdown tables and plots; "
                                         "with --update-readme and --docs, the README's verdicts and the results pages; "
-                                        "with --at-scale, only the README's block of the verdict runs apart from the "
-                                        "bench, from one or more DIRs.")
+                                        "with --at-scale, only the README's block of the verdict (or CCT) runs apart "
+                                        "from the bench, from one or more DIRs.")
     report.add_argument("directory", type=Path, nargs="+", metavar="DIR")
     report.add_argument("--update-readme", type=Path, default=None, metavar="README",
                         help="also replace the generated verdicts section of this README (and write the results "
@@ -47,7 +47,8 @@ def add_parser(sub) -> None:
     report.add_argument("--at-scale", type=Path, default=None, metavar="README",
                         help="write only this README's generated block of verdict runs apart from make bench "
                              "(a scaling case's verdicts: too long for the bench), one paragraph per DIR in the "
-                             "order given; the folders' tables are left as they are")
+                             "order given (a DIR of a PINN's CCT searches without verdicts: its CCT summary); "
+                             "the folders' tables are left as they are")
     report.add_argument("--step-claim", type=Path, default=None, metavar="README",
                         help="write only this README's generated block of the step claim: per case, each "
                              "fixed-step method's largest step at COI rel. L2 <= 1e-3 and its grid time, from a "

@@ -29,7 +29,7 @@ from harness.report.format import fmt, latency_cell
 from harness.report.frames import label, ok, trained
 from harness.report.speedups import break_even
 
-__all__ = ["CCT_ABOUT", "CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_table"]
+__all__ = ["CCT_ABOUT", "CCT_GATE_S", "CCT_HEADLINE", "CCT_TITLE", "cct_headline", "cct_summary", "cct_table"]
 
 CCT_GATE_S = 5e-3  # s: a surrogate's CCT further than this from the reference's counts as a loss
 
@@ -174,3 +174,40 @@ def cct_headline(frames: dict) -> pd.DataFrame:
                          "break-even N* (CCT searches)": "never" if worst_n == math.inf else fmt(worst_n),
                          "verdict": f"{label_} ({counts})"})
     return pd.DataFrame(rows)
+
+
+def cct_summary(frames: dict) -> str:
+    """The CCT searches of a run in one bullet per PINN configuration (its worst seed on each fault
+    case, as `cct_headline`): on how many cases it finds a CCT, how far from the reference's (ms; and
+    on how many refusals left the bracket wider than the suite's), the cases where it finds none, the
+    time of its search against the fastest classical search within the bracket (the ratio rival time
+    over PINN time, as the verdicts give it), and its break-even; "" without a surrogate's search."""
+    df = _frame(frames)
+    if df.empty or not df["surrogate"].any():
+        return ""
+    out = []
+    pinns = df[df["surrogate"]]
+    for pinn, runs in pinns.groupby(pinns["solver"] + " " + pinns["config"], sort=False):
+        worst = runs.loc[runs.groupby("case", sort=False)["median_s"].idxmax()]  # the slowest seed of each case
+        found = worst[worst["raw_error_s"].notna()]
+        missing = worst.loc[worst["raw_error_s"].isna(), "case"].tolist()
+        ratios, never = [], 0
+        for _, r in worst.iterrows():
+            classical = df[(df["case"] == r["case"]) & ~df["surrogate"]]
+            best = _rival(classical, 0.0, float(r["bracket_s"]))
+            if best is not None:
+                ratios.append(best["median_s"] / r["median_s"])
+            never += _break_even(classical, r)[1] == math.inf
+        errors = 1e3 * found["raw_error_s"].abs()
+        wide = int(found["cct_error_s"].isna().sum())
+        text = f"- **CCT of {len(worst)} fault cases**, `{pinn}`: found on {len(found)}"
+        if len(found):
+            text += f", {fmt(errors.min(), 2)} ms to {fmt(errors.max(), 2)} ms from the reference"
+            text += f" (refusals left the bracket wider than 1 ms on {wide})" if wide else ""
+        text += f"; none on {len(missing)} ({', '.join(missing)})" if missing else ""
+        text += (f"; its search {fmt(worst['median_s'].min(), 2)} s to {fmt(worst['median_s'].max(), 2)} s, "
+                 f"the fastest classical search within 1 ms {fmt(min(ratios), 2)}x to {fmt(max(ratios), 2)}x as long"
+                 if ratios else "")
+        text += f"; break-even never on {never} of {len(worst)}." if never else "."
+        out.append(text)
+    return "\n".join(out) + "\n"
