@@ -11,7 +11,8 @@ angles from the centre of inertia (rad) and the speeds (rad/s), as the accuracy 
 stable clearing times" rows measure them; then each clearing time at or above the CCT alone: refused
 (SolveError), or answered, and then judged by the cct suite's criterion (`is_unstable` at its
 times); of the refused, those whose trajectory crossed the criterion before it stopped (as the cct
-suite judges them unstable: `partial_labels`). Rows to OUT/pinnsim_faults.csv, the command and each fit's message to OUT/pinnsim_faults.json.
+suite judges them unstable: `partial_labels`). Rows to OUT/pinnsim_faults.csv, the command and each
+fit's message to OUT/pinnsim_faults.json.
 
     python scripts/pinnsim_faults.py --out results/pinnsim-faults [--case NAME ...] [--option KEY=VALUE ...]
 """

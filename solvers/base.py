@@ -150,10 +150,11 @@ class SolveError(RuntimeError):
 class PartialSolveError(SolveError):
     """A `solve` that failed part-way, with what it had before: `delta` (len(P1), len(t_query), n)
     rad at the query's times, and `held` (len(P1),) s: each trajectory is the model's answer at the
-    times before it (inf for one that failed nowhere) and NaN from it on. An adapter that stops a trajectory where its model stops holding (a machine leaving a
-    trained domain, a Newton that does not converge) may raise it instead of `SolveError`; a caller
-    that can judge a trajectory from its beginning (the cct suite's criterion, crossed before the
-    failure) may use it, every other caller sees a `SolveError`."""
+    times before it (inf for one that failed nowhere) and NaN from it on. An adapter that stops a
+    trajectory where its model stops holding (a machine leaving a trained domain, a Newton that does
+    not converge) may raise it instead of `SolveError`; a caller that can judge a trajectory from
+    its beginning (the cct suite's criterion, crossed before the failure) may use it, every other
+    caller sees a `SolveError`."""
 
     def __init__(self, message: str, delta: np.ndarray, held: np.ndarray) -> None:
         super().__init__(message)

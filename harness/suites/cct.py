@@ -134,9 +134,12 @@ def partial_labels(case: Case, error: PartialSolveError) -> np.ndarray:
     """(len(t_c),) float of a call the adapter stopped part-way: 1.0 where the criterion is crossed at
     a time the trajectory still held (as the reference stops at its first crossing), 0.0 or 1.0 by
     the criterion where it held throughout, NaN (refused) where it stopped before any crossing."""
-    angles = np.abs(relative_angles(case, error.delta))  # NaN where the trajectory no longer held
-    crossed = np.where(np.isnan(angles), 0.0, angles).max(axis=(-2, -1)) > ANGLE_LIMIT
-    return np.where(crossed, 1.0, np.where(np.isinf(error.held), 0.0, np.nan))
+    labels = []
+    for delta, held in zip(error.delta, error.held):
+        part = delta[~np.isnan(delta).any(axis=-1)]  # the times the trajectory still held
+        crossed = part.shape[0] > 0 and bool(is_unstable(case, part))
+        labels.append(1.0 if crossed else 0.0 if np.isinf(held) else math.nan)
+    return np.array(labels)
 
 
 def _key(t_c: float) -> float:
