@@ -10,6 +10,7 @@ COI speed at 20 s, and the largest |error| of the angles from the centre of iner
 OUT/pinnsim_drift.csv, the command and each fit's message to OUT/pinnsim_drift.json.
 
     python scripts/pinnsim_drift.py --out results/pinnsim-drift [--case NAME ...] [--h H ...]
+        [--option KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from solvers import make_solver
+from solvers.pinn.component_error import option_argument
 from systems.cases import CASES
 from systems.model import center_of_inertia, relative_angles
 from systems.reference import reference
@@ -31,10 +33,11 @@ CASES_MEASURED = ("wscc9", "kundur4", "ieee39")
 STEPS = (0.25, 0.05)
 
 
-def measure(name: str, h: float) -> tuple[dict, str]:
-    """The row of case `name` at step h (s) (see the module docstring) and the fit's message."""
+def measure(name: str, h: float, options: dict) -> tuple[dict, str]:
+    """The row of case `name` at step h (s) (see the module docstring) of the network of pinnsim's
+    `options` and the fit's message."""
     case = CASES[name]
-    solver = make_solver("pinnsim", case, h=h)
+    solver = make_solver("pinnsim", case, **options, h=h)
     report = solver.fit()
     t, P1 = np.linspace(0.0, 20.0, 201), np.array([float(case.p_m[0])])
     traj = solver.solve(t, P1)
@@ -51,11 +54,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--case", nargs="+", default=list(CASES_MEASURED))
     parser.add_argument("--h", nargs="+", type=float, default=list(STEPS))
+    parser.add_argument("--option", type=option_argument, action="append", default=[], metavar="KEY=VALUE",
+                        help="a pinnsim option of the network measured (repeatable), e.g. form=rest-exact")
     args = parser.parse_args(argv)
+    options = dict(args.option)
+    if "h" in options:
+        parser.error("the step is --h, not --option h=...")
     rows, fits = [], {}
     for name in args.case:
         for h in args.h:
-            row, fits[name] = measure(name, h)
+            row, fits[name] = measure(name, h, options)
             rows.append(row)
             print(row)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -64,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         writer.writeheader()
         writer.writerows(rows)
     command = " ".join(["python scripts/pinnsim_drift.py", *(argv if argv is not None else sys.argv[1:])])
-    (args.out / "pinnsim_drift.json").write_text(json.dumps({"command": command, "fits": fits}, indent=1) + "\n")
+    (args.out / "pinnsim_drift.json").write_text(json.dumps({"command": command, "options": options, "fits": fits}, indent=1) + "\n")
     return 0
 
 

@@ -35,7 +35,7 @@ from scipy.integrate import solve_ivp
 from solvers.pinn.component import INPUTS, KAPPA, MU, PHI0, SLIP, THETA2, V0, V1, V2, Component, P
 from solvers.pinn.simulator import chain, state_at, substeps
 
-__all__ = ["one_step_error", "test_inputs"]
+__all__ = ["one_step_error", "option_argument", "test_inputs"]
 
 
 def test_inputs(component: Component, h: float, samples: int, seed: int) -> np.ndarray:
@@ -107,7 +107,7 @@ def one_step_error(component: Component, h: float, samples: int, seed: int, n_t:
             "exact_seconds": exact_s, "intervals": count, "inputs": list(INPUTS)}
 
 
-def _option(text: str) -> tuple[str, object]:
+def option_argument(text: str) -> tuple[str, object]:
     """"KEY=VALUE" -> (KEY, VALUE), VALUE read as JSON where it is JSON, as text otherwise."""
     key, sep, value = text.partition("=")
     if not sep or not key:
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--case", default=None, help="any case the config takes (the network does not depend "
                         "on it; default wscc9, or its fault case for a config made for fault cases)")
     parser.add_argument("--config", default="default", help="a pinnsim config (its domain and options)")
-    parser.add_argument("--option", type=_option, action="append", default=[], metavar="KEY=VALUE",
+    parser.add_argument("--option", type=option_argument, action="append", default=[], metavar="KEY=VALUE",
                         help="a pinnsim option of the network measured (repeatable), e.g. rate_weight=0.2")
     args = parser.parse_args(argv)
     from solvers import make_solver

@@ -134,7 +134,7 @@ class PinnSim(AbstractSolver):
                              f"config 'faults' trains a domain for fault cases")
 
     def _training(self) -> dict[str, Any]:
-        keys = ("net_h", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
+        keys = ("net_h", "form", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
                 "max_iterations", "max_seconds", "seed")
         return {key: self.options[key] for key in keys}
 
@@ -154,7 +154,7 @@ class PinnSim(AbstractSolver):
         path = None if options["component_dir"] is None else Path(options["component_dir"]) / self.component_key()
         if path is not None and path.with_name(path.name + ".json").is_file():
             component = Component.load(path)
-            if component.domain == self.domain:
+            if component.domain == self.domain and component.form == options["form"]:
                 trained_s = float(component.record.get("seconds", float("nan")))
                 return component, (f"component network loaded from {path} (trained once in {trained_s:.1f} s, "
                                    "counted in fit_s)"), trained_s
@@ -163,7 +163,8 @@ class PinnSim(AbstractSolver):
                                       seed=options["seed"], trajectories=options["trajectories"],
                                       times=options["times"], n_f=options["n_f"],
                                       physics_weight=options["physics_weight"], rate_weight=options["rate_weight"],
-                                      max_iterations=options["max_iterations"], max_seconds=options["max_seconds"])
+                                      max_iterations=options["max_iterations"], max_seconds=options["max_seconds"],
+                                      form=options["form"])
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             component.save(path)

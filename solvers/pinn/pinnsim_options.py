@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from solvers.options import NonNegativeFloat, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
-from solvers.pinn.component import Domain
+from solvers.pinn.component import Domain, Form
 from solvers.pinn.simulator_newton import Newton
 
 __all__ = ["FAULT_DOMAIN", "H_MAX", "STEP_SWEEP", "PinnSimOptions"]
@@ -27,7 +27,8 @@ class PinnSimOptions(OptionSchema):
     impedance, preconditioned per machine, to a normal residual measure <= cg_tol within max_cg
     iterations; `solvers.pinn.simulator_newton.cgls`). The component network: net_h (s) its time
     range, its domain (`Domain`: |slip| <= slip_max rad/s, |theta2| <= theta2_max rad/s^2, v0 in
-    [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
+    [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), its output's form
+    (`solvers.pinn.component.Form`: "rest-exact" holds a machine at rest exactly), hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
     each (angles, and speeds weighted by `rate_weight`, s) and `n_f` collocation points of the
     equation weighted by `physics_weight` (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
     component_dir: where trained networks are kept (None: train every fit)."""
@@ -46,6 +47,7 @@ class PinnSimOptions(OptionSchema):
     v0_max: PositiveFloat = Domain.v0[1]
     v1_max: PositiveFloat = Domain.v1
     v2_max: PositiveFloat = Domain.v2
+    form: Form = "plain"
     hidden_layers: PositiveInt = 2
     width: PositiveInt = 24
     trajectories: PositiveInt = 1000

@@ -66,12 +66,12 @@ def _inputs(coef: Any, mu: Any, kappa: Any, p: Any, delta: Any, omega: Any, ts: 
 def chain(component: Component, count: int, sub: Any, theta: Any, coef: Any, mu: Any, kappa: Any, p: Any,
            delta0: Any, omega0: Any) -> tuple[Any, Any]:
     """One machine: (starts (count + 1, 2): (delta, omega) at the interval edges, inputs (count, 9))."""
-    sizes, domain = component.sizes, component.domain
+    sizes, domain, form = component.sizes, component.domain, component.form
 
     def step(state, i):
         ts = i * sub
         x = _inputs(coef, mu, kappa, p, state[0], state[1], ts)
-        phi, rate = phi_rate(sizes, domain, theta, x, jnp.asarray(sub))
+        phi, rate = phi_rate(sizes, domain, form, theta, x, jnp.asarray(sub))
         th, th_rate, _, _ = _local(coef, ts)
         end = jnp.stack([th + th_rate * sub + phi, th_rate + rate])
         return end, (end, x)
@@ -96,7 +96,7 @@ def state_at(component: Component, sub: Any, theta: Any, coef: Any, mu: Any, kap
     tau = jnp.maximum(t - ts, 0.0)
     start = starts[i]
     x = _inputs(coef, mu, kappa, p, start[0], start[1], ts)
-    phi, rate = phi_rate(component.sizes, component.domain, theta, x, tau)
+    phi, rate = phi_rate(component.sizes, component.domain, component.form, theta, x, tau)
     th, th_rate, _, _ = _local(coef, ts)
     return jnp.stack([th + th_rate * tau + phi, th_rate + rate])
 
