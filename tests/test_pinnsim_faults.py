@@ -102,7 +102,7 @@ def test_the_steps_end_on_each_clearing_time_and_none_is_longer_than_h():
 
 def test_the_default_domain_refuses_a_fault_case_naming_the_config_that_holds_it():
     with pytest.raises(ValueError, match=r"^pinnsim: case 'wscc9-bus8-line8-9' has fault-on terminal voltages in "
-                                         r"\[.*\] p\.u\. at t = 0, outside the trained domain's v0 \[0\.85, 1\.15\] "
+                                         r"\[.*\] p\.u\. at t = 0, outside the trained domain's v0 \[0\.85, 1\.2\] "
                                          r"p\.u\.; config 'faults' trains a domain for fault cases$"):
         make_solver("pinnsim", FAULT)
 
