@@ -75,7 +75,7 @@ def test_an_unknown_form_lists_the_known_ones():
         Component(24, 2, Domain(), np.empty(0), form="exact").sizes  # noqa: B018
 
 
-@pytest.mark.parametrize("form", FORMS)
+@pytest.mark.parametrize("form", [pytest.param("plain", marks=pytest.mark.slow), "rest-exact"])
 def test_the_simulator_holds_the_operating_point_with_a_rest_exact_component(form, tmp_path):
     """wscc9 at P1 = generator 1's own power: the reference stays at its equilibrium. Random weights
     saved where the adapter looks for its trained network (so that nothing trains here), small
