@@ -72,7 +72,8 @@ def main(argv: list[str] | None = None) -> int:
         writer.writeheader()
         writer.writerows(rows)
     command = " ".join(["python scripts/pinnsim_drift.py", *(argv if argv is not None else sys.argv[1:])])
-    (args.out / "pinnsim_drift.json").write_text(json.dumps({"command": command, "options": options, "fits": fits}, indent=1) + "\n")
+    record = {"command": command, "options": options, "fits": fits}
+    (args.out / "pinnsim_drift.json").write_text(json.dumps(record, indent=1) + "\n")
     return 0
 
 

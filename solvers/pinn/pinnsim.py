@@ -134,8 +134,8 @@ class PinnSim(AbstractSolver):
                              f"config 'faults' trains a domain for fault cases")
 
     def _training(self) -> dict[str, Any]:
-        keys = ("net_h", "form", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight", "rate_weight",
-                "max_iterations", "max_seconds", "seed")
+        keys = ("net_h", "form", "hidden_layers", "width", "trajectories", "times", "n_f", "physics_weight",
+                "rate_weight", "max_iterations", "max_seconds", "seed")
         return {key: self.options[key] for key in keys}
 
     def component_key(self) -> str:

@@ -25,17 +25,17 @@ FAULT_DOMAIN = {"v0_min": 0.0, "v0_max": 1.2, "slip_max": 6.0, "theta2_max": 30.
 
 
 class PinnSimOptions(OptionSchema):
-    """h (s): the simulator's step, in (0, H_MAX]; collocation: points t_j = h j / s of a step's
-    network equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest
-    update is <= newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal
-    matrix formed, O((4 n)^3) an iteration) or "matrix-free" (CGLS with products by the network's
-    impedance, preconditioned per machine, to a normal residual measure <= cg_tol within max_cg
-    iterations; `solvers.pinn.simulator_newton.cgls`). The component network: net_h (s) its time
-    range, its domain (`Domain`: |slip| <= slip_max rad/s, |theta2| <= theta2_max rad/s^2, v0 in
-    [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), its output's form
-    (`solvers.pinn.component.Form`: "rest-exact" holds a machine at rest exactly), hidden layers x width tanh, trained from `seed` on `trajectories` exact responses at `times` times
-    each (angles, and speeds weighted by `rate_weight`, s) and `n_f` collocation points of the
-    equation weighted by `physics_weight` (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
+    """h (s): the simulator's step, in (0, H_MAX]; collocation: points t_j = h j / s of a step's network
+    equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest update is <=
+    newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal matrix formed, O((4 n)^3) an
+    iteration) or "matrix-free" (CGLS with products by the network's impedance, preconditioned per machine, to a
+    normal residual measure <= cg_tol within max_cg iterations; `solvers.pinn.simulator_newton.cgls`). The
+    component network: net_h (s) its time range, its domain (`Domain`: |slip| <= slip_max rad/s, |theta2| <=
+    theta2_max rad/s^2, v0 in [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), its
+    output's form (`solvers.pinn.component.Form`: "rest-exact" holds a machine at rest exactly), hidden layers x
+    width tanh, trained from `seed` on `trajectories` exact responses at `times` times each (angles, and speeds
+    weighted by `rate_weight`, s) and `n_f` collocation points of the equation weighted by `physics_weight`
+    (s^2: rad/s^2 against rad), for max_iterations Levenberg-Marquardt iterations within max_seconds;
     component_dir: where trained networks are kept (None: train every fit)."""
 
     h: PositiveFloat = 0.25
