@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from harness import metrics
+from harness.measure import metrics
 from harness.suites.accuracy import stability_classes
 from harness.suites.cct import grid_then_bisect
 from solvers import make_solver

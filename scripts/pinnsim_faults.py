@@ -32,7 +32,7 @@ from harness.suites.accuracy import COI_DELTA
 from harness.suites.cct import criterion_times, partial_labels
 from solvers import make_solver
 from solvers.base import PartialSolveError, SolveError
-from solvers.pinn.component_error import _option
+from solvers.pinn.component_error import option_argument
 from systems.cases import CASES, standard_grid
 from systems.model import relative_angles
 from systems.reference import STABLE_CLEARING, UNSTABLE_CLEARING, reference
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--case", nargs="+", default=list(CASES_MEASURED))
-    parser.add_argument("--option", type=_option, action="append", default=[], metavar="KEY=VALUE",
+    parser.add_argument("--option", type=option_argument, action="append", default=[], metavar="KEY=VALUE",
                         help="a pinnsim option (repeatable), e.g. max_iterations=1500")
     args = parser.parse_args(argv)
     rows, fits = [], {}
