@@ -47,6 +47,7 @@ __all__ = [
     "NonNegativeInt",
     "OptionSchema",
     "PositiveFloat",
+    "PositiveFloats",
     "PositiveInt",
     "StrictBool",
     "StrictChoice",
@@ -110,6 +111,9 @@ StrictBool = Annotated[bool, BeforeValidator(_python_scalar), Strict(), Describe
 Bounds = Annotated[tuple[PositiveFloat, PositiveFloat], BeforeValidator(_pair), Strict(),
                    AfterValidator(_ordered),
                    Describe("a pair (low, high) of finite numbers with 0 < low < high")]
+# zero or more positive finite numbers, in the order given (e.g. steps to try in turn, s)
+PositiveFloats = Annotated[tuple[PositiveFloat, ...], BeforeValidator(_pair), Strict(),
+                           Describe("a list of positive finite numbers")]
 # Put on an integer Literal: `Annotated[Literal[1, 2], StrictChoice]`
 StrictChoice = BeforeValidator(_exact_int)
 

@@ -146,7 +146,7 @@ def test_the_state_is_continuous_at_the_clearing_time_on_a_step_edge(fitted):
     """The machines' angle and speed carry over t_c (the voltage jumps there: the next step starts
     from the post-fault network's), and t_c is the edge of a step of each clearing time's query."""
     for t_c in (0.1, 0.15):
-        _, _, _, _, edges, _ = fitted._simulate(t_c + 0.5, np.array([t_c]))
+        _, _, _, _, edges, _ = fitted._simulate(fitted.options["h"], t_c + 0.5, np.array([t_c]))
         assert t_c in edges[0]
         near = fitted.solve(np.array([t_c - 1e-7, t_c, t_c + 1e-7]), t_c)
         np.testing.assert_allclose(near.delta[0, 1:], near.delta[0, :2], rtol=0, atol=1e-5)  # |omega| < 100 rad/s
@@ -187,3 +187,62 @@ def test_a_refused_call_carries_each_trajectory_up_to_its_first_failed_step(fitt
     assert np.isnan(error.delta[1, ~before]).all() and np.isfinite(error.delta[1, before]).all()
     if before.sum() > 1:  # the part that held is what a query of those times alone answers
         np.testing.assert_allclose(error.delta[1, before], fitted.solve(t[before], T_c[1]).delta[0], atol=1e-12)
+
+
+def test_a_retry_step_outside_the_trained_range_is_one_line():
+    with pytest.raises(ValueError, match=r"^pinnsim: option retry_h has a step 0\.5 s outside \(0, h_max = 0.25\] s$"):
+        make_solver("pinnsim", FAULT, "faults", retry_h=[0.1, 0.5])
+
+
+def _failing(solver, fail: dict[float, float]):
+    """`solver._simulate` whose first P1 fails at `fail[h]` s at the steps h named (a made failure,
+    as a machine leaving the domain there), each other P1 and step as simulated."""
+    real = solver._simulate
+
+    def simulate(h, t_max, P1, check=True):
+        out = real(h, t_max, P1, check)
+        if check and h in fail:
+            held = np.full(P1.size, np.inf) if out[5] is None else out[5][1].copy()
+            held[0] = min(held[0], fail[h])
+            return (*out[:5], (f"made to fail at h = {h}", held))
+        return out
+    return simulate
+
+
+def test_a_refused_clearing_time_is_answered_at_the_first_retry_step_that_holds(monkeypatch):
+    """retry_h: a P1 that fails at h is simulated again at each retry step in turn and answered from
+    the first one that holds throughout; every other P1 keeps its answer at h; points too."""
+    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, "retry_h": [0.2, 0.1]})
+    solver.fit()
+    h = solver.options["h"]
+    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: 0.5, 0.2: 0.3}))
+    t, T_c = np.linspace(0.0, 2.0, 21), np.array([0.1, 0.15])
+    traj = solver.solve(t, T_c)
+    at = {step: make_solver("pinnsim", FAULT, "faults", **{**SMALL, "h": step}) for step in (h, 0.1)}
+    for other in at.values():
+        other.fit()
+    np.testing.assert_allclose(traj.delta[0], at[0.1].solve(t, T_c[0]).delta[0], atol=1e-12)
+    np.testing.assert_allclose(traj.delta[1], at[h].solve(t, T_c[1]).delta[0], atol=1e-12)
+    points = solver.solve_points(np.array([1.0, 0.7, 1.5]), np.array([0.1, 0.15, 0.1]))
+    np.testing.assert_allclose(points.delta, [traj.delta[0, 10], at[h].solve(np.array([0.7]), 0.15).delta[0, 0],
+                                              traj.delta[0, 15]], atol=1e-10)
+
+
+def test_where_every_step_fails_the_refusal_carries_the_attempt_that_held_longest(monkeypatch):
+    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, "retry_h": [0.1]})
+    solver.fit()
+    h = solver.options["h"]
+    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: 0.5, 0.1: 0.3}))
+    t = np.linspace(0.0, 2.0, 21)
+    with pytest.raises(PartialSolveError, match=r"^made to fail at h = 0\.1 \(at h = 0\.1 s, after h = 0\.25 s\)$") \
+            as caught:
+        solver.solve(t, np.array([0.1, 0.15]))
+    error = caught.value
+    assert error.held[0] == 0.5 and np.isinf(error.held[1])
+    coarse = make_solver("pinnsim", FAULT, "faults", **SMALL)
+    coarse.fit()
+    before = t < 0.5
+    np.testing.assert_allclose(error.delta[0, before], coarse.solve(t, 0.1).delta[0, before], atol=1e-12)
+    assert np.isnan(error.delta[0, ~before]).all()
+    with pytest.raises(SolveError, match=r"^made to fail at h = 0\.1 "):
+        solver.solve_points(np.array([1.0]), np.array([0.1]))

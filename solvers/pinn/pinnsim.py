@@ -93,6 +93,9 @@ class PinnSim(AbstractSolver):
         options, case = self.options, self.case
         if not 0.0 < options["h"] <= H_MAX:
             raise ValueError(f"{self.name}: option h={options['h']!r} s is outside (0, h_max = {H_MAX}] s")
+        for h in options["retry_h"]:
+            if not h <= H_MAX:
+                raise ValueError(f"{self.name}: option retry_h has a step {h!r} s outside (0, h_max = {H_MAX}] s")
         if options["collocation"] < 2:
             raise ValueError(f"{self.name}: option collocation must be at least 2 (4 n unknowns, 2 n equations a point)")
         if case.kind != NETWORK or tie_admittances(case) is None:
@@ -180,35 +183,35 @@ class PinnSim(AbstractSolver):
             self._theta = jnp.asarray(component.theta)
             self._machines = {"mu": jnp.asarray(params["mu"]), "kappa": jnp.asarray(params["kappa"]),
                               "w": jnp.asarray(params["w"]), "Z": jnp.asarray(impedances(self.case))}
-        self._grid, self._points = query_function(component, self.options["h"])
-        self._simulate(self.options["h"], np.array([self.case.p1_max]), check=False)  # compile one shape
+        h = self.options["h"]
+        self._simulate(h, h, np.array([self.case.p1_max]), check=False)  # compile one shape (one step)
         record = component.record
         return FitReport(seconds=0.0, iterations=int(record.get("iterations", 0)), loss=float(record.get("loss", np.nan)),
                          message="; ".join(filter(None, (threads, how))), reused_s=trained_s)
 
-    def _schedule(self, t_max: float, P1: np.ndarray) -> Schedule:
-        """The steps of every P1 (padded) to at least t_max and the horizon: h each on a step case;
-        on a fault case aligned with 0 and each t_c, counts fixed by the case's range of t_c (and
-        any t_c or t beyond it) so that a query in the range compiles once (`fault_schedule`)."""
-        h, case = self.options["h"], self.case
+    def _schedule(self, h: float, t_max: float, P1: np.ndarray) -> Schedule:
+        """The steps of every P1 (padded) to at least t_max and the horizon: h (s) each on a step
+        case; on a fault case aligned with 0 and each t_c, counts fixed by the case's range of t_c
+        (and any t_c or t beyond it) so that a query in the range compiles once (`fault_schedule`)."""
+        case = self.case
         t_end = max(case.t_final, t_max)
         if case.fault is None:
             return uniform_schedule(P1.size, h, max(1, int(np.ceil(t_end / h - 1e-9))))
         return fault_schedule(P1, h, t_end, max(case.p1_max, float(P1.max())), min(case.p1_min, float(P1.min())))
 
-    def _simulate(self, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[Any, Any, Any, int, np.ndarray,
-                                                                                  tuple[str, np.ndarray] | None]:
+    def _simulate(self, h: float, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[
+            Any, Any, Any, int, np.ndarray, tuple[str, np.ndarray] | None]:
         """(p, starts, coef, the last step simulated, the steps' edges (n_P padded, K + 1) s, the
-        failure) of every P1 over the steps that reach t_max (`_schedule`). The failure (`_check`,
+        failure) of every P1 over the steps of h (s) that reach t_max (`_schedule`). The failure (`_check`,
         None without `check` or when every step held): a CG or Newton failure or a machine that
         leaves the trained domain, the one-line message of the first (naming the step, its start and
         phase, and P1) and each P1's first failed step's start (s). One compiled function a padded
         count of P1 (`_bucket`) serves every number of steps up to the horizon."""
         options, case = self.options, self.case
         padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
-        schedule = self._schedule(t_max, padded)
-        steps = schedule.steps_to(t_max, options["h"])
-        run = simulate_function(self.component, options["h"], schedule.lengths.shape[1], options["collocation"],
+        schedule = self._schedule(h, t_max, padded)
+        steps = schedule.steps_to(t_max, h)
+        run = simulate_function(self.component, h, schedule.lengths.shape[1], options["collocation"],
                                 options["max_newton"], options["newton_tol"], options["newton"], options["cg_tol"],
                                 options["max_cg"])
         p = case.powers(padded) / self._beta
@@ -256,27 +259,61 @@ class PinnSim(AbstractSolver):
         return (f"{self.name}: {where(i, k)} a machine's {INPUTS[int(column[i, k])]} leaves the component's trained "
                 "domain"), held
 
+    def _attempts(self, t_max: float, P1: np.ndarray) -> tuple[list[tuple[Any, tuple]], np.ndarray, np.ndarray,
+                                                                  str | None, np.ndarray]:
+        """Every P1 simulated at h, and those that failed again at each step of retry_h in turn
+        (`_simulate` to t_max s): the attempts [(query functions of its step, (p, starts, coef, last,
+        edges))], and per P1 the attempt it is answered from (the one that held longest; the first
+        of equals) and its row in that attempt (len(P1),) int each; the failure's message (None where
+        every P1 held throughout at some step, else the last attempt's) and each P1's held time
+        (len(P1),) s (inf where one held throughout)."""
+        options = self.options
+        held, owner, local = np.full(P1.size, -np.inf), np.zeros(P1.size, int), np.zeros(P1.size, int)
+        attempts, rows, message = [], np.arange(P1.size), None
+        for h in (options["h"], *options["retry_h"]):
+            p, starts, coef, last, edges, failure = self._simulate(h, t_max, P1[rows])
+            got = np.full(rows.size, np.inf) if failure is None else failure[1]
+            longer = got > held[rows]
+            held[rows[longer]], owner[rows[longer]] = got[longer], len(attempts)
+            local[rows[longer]] = np.flatnonzero(longer)
+            attempts.append((query_function(self.component, h), (p, starts, coef, last, edges)))
+            if failure is not None:
+                message = failure[0] + (f" (at h = {h:g} s, after h = {options['h']:g} s)" if attempts[1:] else "")
+            rows = rows[np.isfinite(held[rows])]
+            if not rows.size:
+                return attempts, owner, local, None, held
+        return attempts, owner, local, message, held
+
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The trajectories on t; a failed step raises `PartialSolveError`: each P1's angles at the
-        times before its first failed step, NaN from that step's start on."""
-        p, starts, coef, last, edges, failure = self._simulate(float(t.max()), P1)
+        """The trajectories on t; a P1 that fails at h and at every step of retry_h raises
+        `PartialSolveError`: each P1's angles at the times before its first failed step (of the
+        attempt that held longest), NaN from that step's start on."""
+        attempts, owner, local, message, held = self._attempts(float(t.max()), P1)
+        both = np.empty((2, P1.size, t.size, self.case.n))
         with jax.enable_x64(True):
-            both = np.asarray(self._grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
-                                         jnp.asarray(t)))
-        delta, omega = both[0, :P1.size], both[1, :P1.size]
-        if failure is not None:
-            message, held = failure
+            for k, ((grid, _), (p, starts, coef, last, edges)) in enumerate(attempts):
+                mine = owner == k
+                if mine.any():
+                    out = grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges), jnp.asarray(t))
+                    both[:, mine] = np.asarray(out)[:, local[mine]]
+        delta, omega = both[0], both[1]
+        if message is not None:
             raise PartialSolveError(message, np.where(t[None, :, None] < held[:, None, None], delta, np.nan), held)
         return delta, omega
 
     def _solve_points(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         values, which = np.unique(P1, return_inverse=True)
-        p, starts, coef, last, edges, failure = self._simulate(float(t.max()), values)
-        if failure is not None:
-            raise SolveError(failure[0])
+        attempts, owner, local, message, _ = self._attempts(float(t.max()), values)
+        if message is not None:
+            raise SolveError(message)
+        both = np.empty((2, t.size, self.case.n))
         with jax.enable_x64(True):
-            both = np.asarray(self._points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
-                                           jnp.asarray(which), jnp.asarray(t)))
+            for k, ((_, points), (p, starts, coef, last, edges)) in enumerate(attempts):
+                mine = owner[which] == k  # the points of the P1 values answered from attempt k
+                if mine.any():
+                    out = points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
+                                 jnp.asarray(local[which[mine]]), jnp.asarray(t[mine]))
+                    both[:, mine] = np.asarray(out)
         return both[0], both[1]
 
     def _identify(self, obs: Observations) -> Estimate:

@@ -3,7 +3,14 @@
 
 from __future__ import annotations
 
-from solvers.options import NonNegativeFloat, NonNegativeInt, OptionSchema, PositiveFloat, PositiveInt
+from solvers.options import (
+    NonNegativeFloat,
+    NonNegativeInt,
+    OptionSchema,
+    PositiveFloat,
+    PositiveFloats,
+    PositiveInt,
+)
 from solvers.pinn.component import Domain, Form
 from solvers.pinn.simulator_newton import Newton
 
@@ -25,7 +32,10 @@ FAULT_DOMAIN = {"v0_min": 0.0, "v0_max": 1.2, "slip_max": 6.0, "theta2_max": 30.
 
 
 class PinnSimOptions(OptionSchema):
-    """h (s): the simulator's step, in (0, H_MAX]; collocation: points t_j = h j / s of a step's network
+    """h (s): the simulator's step, in (0, H_MAX]; retry_h (s): steps, each in (0, H_MAX], a P1 whose
+    trajectory failed at h (a step's Newton or CG, or a machine out of the domain) is simulated again
+    with, in turn, until one holds throughout; where none does, the attempt that held longest is the
+    answer's part before its failure (`PinnSim._answer`); collocation: points t_j = h j / s of a step's network
     equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest update is <=
     newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal matrix formed, O((4 n)^3) an
     iteration) or "matrix-free" (CGLS with products by the network's impedance, preconditioned per machine, to a
@@ -39,6 +49,7 @@ class PinnSimOptions(OptionSchema):
     component_dir: where trained networks are kept (None: train every fit)."""
 
     h: PositiveFloat = 0.25
+    retry_h: PositiveFloats = ()
     collocation: PositiveInt = 4
     max_newton: PositiveInt = 20
     newton_tol: PositiveFloat = 1e-9
