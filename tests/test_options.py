@@ -26,7 +26,7 @@ CASE = SMIB_INFERENCE
 ADAPTERS = {name: cls for name, cls in SOLVERS.items() if cls is not None}
 NAN, INF = float("nan"), float("inf")
 
-WRONG_TYPES = ["abc", [1e-3], {}, {"a": 1}, object()]  # never valid for any option
+WRONG_TYPES = ["abc", [1e-3], {}, {"a": 1}, object()]  # never valid for any option but a list
 BAD_NUMBERS = [True, False, "1e-3", "0.1", 0.0, -1e-3, -1.0, NAN, INF, -INF]
 BAD_INTS = [True, False, 1.5, 2.0, "2", -1, NAN]
 BAD_BOOLS = [1, 0, "True", "false", 1.0]
@@ -40,7 +40,7 @@ def bad_values(description: str) -> list[Any]:
     """Values an option described as `description` (`describe_option`) must refuse."""
     if description.removeprefix("None or ").startswith("a valid "):  # free text (a folder): only non-text is wrong
         return [[1e-3], {}, {"a": 1}, object(), 1.5, True]
-    values = list(WRONG_TYPES)
+    values = [v for v in WRONG_TYPES if not (isinstance(v, list) and description.startswith("a list"))]
     if not description.startswith("None or"):
         values.append(None)
     if description.endswith("a positive finite number"):
@@ -55,6 +55,8 @@ def bad_values(description: str) -> list[Any]:
         values += BAD_BOOLS
     elif description.startswith("one of"):
         values += ["nope", "", True, 1.5]
+    elif description.endswith("a list of positive finite numbers"):
+        values += [[v] for v in BAD_NUMBERS] + [0.1, "0.1", {0.1}, [0.1, -1.0]]
     elif description.removeprefix("None or ").startswith("a pair"):
         values += [v for v in BAD_BOUNDS if v is not None or not description.startswith("None or")]
     else:

@@ -32,7 +32,7 @@ from threadpoolctl import threadpool_limits
 from solvers.base import LARGE_SYSTEMS, AbstractSolver, FitReport, PartialSolveError, SolveError
 from solvers.identification import Estimate
 from solvers.pinn.component import INPUTS, Component, Domain, train
-from solvers.pinn.pinnsim_options import FAULT_DOMAIN, H_MAX, STEP_SWEEP, PinnSimOptions
+from solvers.pinn.pinnsim_options import FAULT_CONFIG, FAULT_DOMAIN, H_MAX, STEP_SWEEP, PinnSimOptions
 from solvers.pinn.simulator import query_function, simulate_function
 from solvers.pinn.simulator_faults import (
     POST_FAULT,
@@ -71,7 +71,7 @@ class PinnSim(AbstractSolver):
 
     name: ClassVar[str] = "pinnsim"
     SCHEMA = PinnSimOptions
-    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}, "faults": FAULT_DOMAIN}
+    CONFIGS: ClassVar[dict[str, dict[str, Any]]] = {"default": {}, "faults": FAULT_CONFIG}
     CASE_KINDS: ClassVar[dict[str, frozenset[str]]] = {config: frozenset({NETWORK}) for config in CONFIGS}
     CASE_SCENARIOS: ClassVar[dict[str, frozenset]] = {"default": frozenset({STEP_SCENARIO}),
                                                       "faults": frozenset({FAULT_SCENARIO})}
