@@ -169,7 +169,8 @@ def test_a_machine_that_slips_out_of_the_domain_names_the_step_t_c_and_the_input
     inputs = "|".join(INPUTS[1:])
     with pytest.raises(SolveError, match=rf"^pinnsim: (Gauss-Newton did not converge )?at (fault-on|post-fault) step "
                                          rf"\d+ \(t = [0-9.]+ s\) for t_c = 0\.35( a machine's ({inputs}) leaves the "
-                                         r"component's trained domain| after .*)( \(at h = 0\.1 s, after h = 0\.25 s\))?$"):
+                                         r"component's trained domain| after .*)"
+                                         r"( \(at h = 0\.1 s; steps tried \[0\.25, 0\.1\]\))?$"):
         fitted.solve(np.linspace(0.0, 3.0, 31), 0.35)
 
 
@@ -194,55 +195,75 @@ def test_a_retry_step_outside_the_trained_range_is_one_line():
         make_solver("pinnsim", FAULT, "faults", retry_h=[0.1, 0.5])
 
 
-def _failing(solver, fail: dict[float, float]):
-    """`solver._simulate` whose first P1 fails at `fail[h]` s at the steps h named (a made failure,
-    as a machine leaving the domain there), each other P1 and step as simulated."""
+def _failing(solver, fail: dict[float, dict[float, float]]):
+    """`solver._simulate` in which, at each step h named, each P1 value named fails at its time (s)
+    (a made failure, as a machine leaving the domain there); everything else as simulated."""
     real = solver._simulate
 
     def simulate(h, t_max, P1, check=True):
         out = real(h, t_max, P1, check)
-        if check and h in fail:
-            held = np.full(P1.size, np.inf) if out[5] is None else out[5][1].copy()
-            held[0] = min(held[0], fail[h])
-            return (*out[:5], (f"made to fail at h = {h}", held))
-        return out
+        if not check or not any(value in P1 for value in fail.get(h, {})):
+            return out
+        held = np.full(P1.size, np.inf) if out[5] is None else out[5][1].copy()
+        why = [None] * P1.size if out[5] is None else list(out[5][0])
+        for value, at in fail[h].items():
+            for i in np.flatnonzero(P1 == value):
+                held[i], why[i] = min(held[i], at), f"made to fail at h = {h} for {value}"
+        return (*out[:5], (why, held))
     return simulate
+
+
+def _fitted(**options):
+    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, **options})
+    solver.fit()
+    return solver
 
 
 def test_a_refused_clearing_time_is_answered_at_the_first_retry_step_that_holds(monkeypatch):
     """retry_h: a P1 that fails at h is simulated again at each retry step in turn and answered from
-    the first one that holds throughout; every other P1 keeps its answer at h; points too."""
-    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, "retry_h": [0.2, 0.1]})
-    solver.fit()
+    the first one that holds throughout; every other P1 keeps its answer at h; points too. The
+    failing P1 is the second, so that its row in a retry (the first) is not its row in the call."""
+    solver = _fitted(retry_h=[0.2, 0.1])
     h = solver.options["h"]
-    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: 0.5, 0.2: 0.3}))
+    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: {0.15: 0.5}, 0.2: {0.15: 0.3}}))
     t, T_c = np.linspace(0.0, 2.0, 21), np.array([0.1, 0.15])
     traj = solver.solve(t, T_c)
-    at = {step: make_solver("pinnsim", FAULT, "faults", **{**SMALL, "h": step}) for step in (h, 0.1)}
-    for other in at.values():
-        other.fit()
-    np.testing.assert_allclose(traj.delta[0], at[0.1].solve(t, T_c[0]).delta[0], atol=1e-12)
-    np.testing.assert_allclose(traj.delta[1], at[h].solve(t, T_c[1]).delta[0], atol=1e-12)
-    points = solver.solve_points(np.array([1.0, 0.7, 1.5]), np.array([0.1, 0.15, 0.1]))
-    np.testing.assert_allclose(points.delta, [traj.delta[0, 10], at[h].solve(np.array([0.7]), 0.15).delta[0, 0],
-                                              traj.delta[0, 15]], atol=1e-10)
+    at = {step: _fitted(h=step, retry_h=[]) for step in (h, 0.1)}
+    np.testing.assert_allclose(traj.delta[1], at[0.1].solve(t, T_c[1]).delta[0], atol=1e-12)
+    np.testing.assert_allclose(traj.delta[0], at[h].solve(t, T_c[0]).delta[0], atol=1e-12)
+    assert np.abs(traj.delta[1] - at[h].solve(t, T_c[1]).delta[0]).max() > 1e-6  # the steps differ
+    points = solver.solve_points(np.array([1.0, 0.7, 1.5]), np.array([0.15, 0.1, 0.15]))
+    np.testing.assert_allclose(points.delta, [traj.delta[1, 10], at[h].solve(np.array([0.7]), 0.1).delta[0, 0],
+                                              traj.delta[1, 15]], atol=1e-10)
 
 
-def test_where_every_step_fails_the_refusal_carries_the_attempt_that_held_longest(monkeypatch):
-    solver = make_solver("pinnsim", FAULT, "faults", **{**SMALL, "retry_h": [0.1]})
-    solver.fit()
+@pytest.mark.parametrize(("retry_at", "longest"), [(0.3, 0.5), (0.8, 0.8)], ids=["h-longer", "retry-longer"])
+def test_where_every_step_fails_the_refusal_carries_the_attempt_that_held_longest(monkeypatch, retry_at, longest):
+    solver = _fitted(retry_h=[0.1])
     h = solver.options["h"]
-    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: 0.5, 0.1: 0.3}))
+    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: {0.15: 0.5}, 0.1: {0.15: retry_at}}))
     t = np.linspace(0.0, 2.0, 21)
-    with pytest.raises(PartialSolveError, match=r"^made to fail at h = 0\.1 \(at h = 0\.1 s, after h = 0\.25 s\)$") \
-            as caught:
+    step = h if longest == 0.5 else 0.1
+    with pytest.raises(PartialSolveError, match=rf"^made to fail at h = {step} for 0\.15 \(at h = {step:g} s; steps "
+                                                rf"tried \[{h}, 0\.1\]\)$") as caught:
         solver.solve(t, np.array([0.1, 0.15]))
     error = caught.value
-    assert error.held[0] == 0.5 and np.isinf(error.held[1])
-    coarse = make_solver("pinnsim", FAULT, "faults", **SMALL)
-    coarse.fit()
-    before = t < 0.5
-    np.testing.assert_allclose(error.delta[0, before], coarse.solve(t, 0.1).delta[0, before], atol=1e-12)
-    assert np.isnan(error.delta[0, ~before]).all()
-    with pytest.raises(SolveError, match=r"^made to fail at h = 0\.1 "):
-        solver.solve_points(np.array([1.0]), np.array([0.1]))
+    assert error.held[1] == longest and np.isinf(error.held[0])
+    before = t < longest
+    alone = _fitted(h=step, retry_h=[]).solve(t, 0.15).delta[0]
+    np.testing.assert_allclose(error.delta[1, before], alone[before], atol=1e-12)
+    assert np.isnan(error.delta[1, ~before]).all()
+    with pytest.raises(SolveError, match=rf"^made to fail at h = {step} for 0\.15 "):
+        solver.solve_points(np.array([1.0]), np.array([0.15]))
+
+
+def test_without_retry_steps_a_refusal_is_the_steps_own_and_a_repeated_step_is_not_tried_again(monkeypatch):
+    solver = _fitted(retry_h=[])
+    h = solver.options["h"]
+    monkeypatch.setattr(solver, "_simulate", _failing(solver, {h: {0.15: 0.5}}))
+    with pytest.raises(PartialSolveError, match=rf"^made to fail at h = {h} for 0\.15$"):
+        solver.solve(np.linspace(0.0, 2.0, 21), np.array([0.15]))
+    again = _fitted(retry_h=[h, 0.1, 0.1])
+    monkeypatch.setattr(again, "_simulate", _failing(again, {h: {0.15: 0.5}, 0.1: {0.15: 0.5}}))
+    with pytest.raises(PartialSolveError, match=rf"steps tried \[{h}, 0\.1\]\)$"):
+        again.solve(np.linspace(0.0, 2.0, 21), np.array([0.15]))

@@ -230,18 +230,12 @@ class PinnSim(AbstractSolver):
         return p_j, starts, coef, steps - 1, schedule.edges, failure
 
     def _check(self, P1: np.ndarray, schedule: Schedule, iterations: np.ndarray, size: np.ndarray,
-               excess: np.ndarray, column: np.ndarray, cg_residual: np.ndarray) -> tuple[str, np.ndarray] | None:
-        """None when every step of every P1 held, else the one-line message of the first failed step
-        (`_simulate`) of the first P1 with one (its CG, else its Newton, else a machine out of the
-        domain) and each P1's held time (len(P1),) s: the start of its first failed step (its state
+               excess: np.ndarray, column: np.ndarray, cg_residual: np.ndarray) -> tuple[list, np.ndarray] | None:
+        """None when every step of every P1 held, else per P1 the one-line message of its first failed
+        step (`_simulate`; its CG, else its Newton, else a machine out of the domain; None where
+        none failed) and its held time (len(P1),) s: the start of its first failed step (its state
         there is the last step's end), inf where none failed."""
         options, symbol = self.options, self.case.scenario.symbol
-
-        def where(i: int, k: int) -> str:
-            phase = "" if self.case.fault is None else \
-                (" post-fault" if schedule.phase[i, k] == POST_FAULT else " fault-on")
-            return f"at{phase} step {k + 1} (t = {schedule.edges[i, k]:g} s) for {symbol} = {float(P1[i])!r}"
-
         unsolved = ~(cg_residual <= options["cg_tol"]) & (options["newton"] == "matrix-free")
         failed, outside = ~(size <= options["newton_tol"]), excess > 0
         bad = unsolved | failed | outside
@@ -249,40 +243,47 @@ class PinnSim(AbstractSolver):
             return None
         first = bad.argmax(axis=1)  # each P1's first failed step (0 where none: masked below)
         held = np.where(bad.any(axis=1), schedule.edges[np.arange(P1.size), first], np.inf)
-        i, k = np.argwhere(bad)[0]  # the first P1 that fails, at its first failed step
-        if unsolved[i, k]:
-            return (f"{self.name}: CG did not converge {where(i, k)} within max_cg = {options['max_cg']} iterations: "
-                    f"relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}"), held
-        if failed[i, k]:
-            return (f"{self.name}: Gauss-Newton did not converge {where(i, k)} after {int(iterations[i, k])} "
-                    f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}"), held
-        return (f"{self.name}: {where(i, k)} a machine's {INPUTS[int(column[i, k])]} leaves the component's trained "
-                "domain"), held
+
+        def message(i: int, k: int) -> str:
+            phase = "" if self.case.fault is None else \
+                (" post-fault" if schedule.phase[i, k] == POST_FAULT else " fault-on")
+            where = f"at{phase} step {k + 1} (t = {schedule.edges[i, k]:g} s) for {symbol} = {float(P1[i])!r}"
+            if unsolved[i, k]:
+                return (f"{self.name}: CG did not converge {where} within max_cg = {options['max_cg']} iterations: "
+                        f"relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
+            if failed[i, k]:
+                return (f"{self.name}: Gauss-Newton did not converge {where} after {int(iterations[i, k])} "
+                        f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")
+            return f"{self.name}: {where} a machine's {INPUTS[int(column[i, k])]} leaves the component's trained domain"
+
+        return [message(i, int(first[i])) if bad[i].any() else None for i in range(P1.size)], held
 
     def _attempts(self, t_max: float, P1: np.ndarray) -> tuple[list[tuple[Any, tuple]], np.ndarray, np.ndarray,
                                                                   str | None, np.ndarray]:
-        """Every P1 simulated at h, and those that failed again at each step of retry_h in turn
-        (`_simulate` to t_max s): the attempts [(query functions of its step, (p, starts, coef, last,
-        edges))], and per P1 the attempt it is answered from (the one that held longest; the first
-        of equals) and its row in that attempt (len(P1),) int each; the failure's message (None where
-        every P1 held throughout at some step, else the last attempt's) and each P1's held time
-        (len(P1),) s (inf where one held throughout)."""
-        options = self.options
+        """Every P1 simulated at h, and those that failed again at each step of retry_h in turn (a
+        step met before is skipped) (`_simulate` to t_max s): the attempts [(query functions of its
+        step, (p, starts, coef, last, edges))], and per P1 the attempt it is answered from (the one
+        that held longest; the first of equals) and its row in that attempt (len(P1),) int each; the
+        failure's message (None where every P1 held throughout at some step, else the first refused
+        P1's, from the attempt it is answered from, naming that attempt's step when there were
+        several) and each P1's held time (len(P1),) s (inf where one held throughout)."""
+        steps = list(dict.fromkeys((self.options["h"], *self.options["retry_h"])))
         held, owner, local = np.full(P1.size, -np.inf), np.zeros(P1.size, int), np.zeros(P1.size, int)
-        attempts, rows, message = [], np.arange(P1.size), None
-        for h in (options["h"], *options["retry_h"]):
+        reason: list[str | None] = [None] * P1.size
+        attempts, rows = [], np.arange(P1.size)
+        for h in steps:
             p, starts, coef, last, edges, failure = self._simulate(h, t_max, P1[rows])
-            got = np.full(rows.size, np.inf) if failure is None else failure[1]
-            longer = got > held[rows]
-            held[rows[longer]], owner[rows[longer]] = got[longer], len(attempts)
-            local[rows[longer]] = np.flatnonzero(longer)
+            got, why = (np.full(rows.size, np.inf), [None] * rows.size) if failure is None else (failure[1], failure[0])
+            for j in np.flatnonzero(got > held[rows]):
+                i = rows[j]
+                held[i], owner[i], local[i] = got[j], len(attempts), j
+                reason[i] = None if why[j] is None else why[j] + (f" (at h = {h:g} s; steps tried {steps})"
+                                                                  if len(steps) > 1 else "")
             attempts.append((query_function(self.component, h), (p, starts, coef, last, edges)))
-            if failure is not None:
-                message = failure[0] + (f" (at h = {h:g} s, after h = {options['h']:g} s)" if attempts[1:] else "")
             rows = rows[np.isfinite(held[rows])]
             if not rows.size:
                 return attempts, owner, local, None, held
-        return attempts, owner, local, message, held
+        return attempts, owner, local, reason[int(rows[0])], held
 
     def _solve(self, t: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The trajectories on t; a P1 that fails at h and at every step of retry_h raises
@@ -309,11 +310,12 @@ class PinnSim(AbstractSolver):
         both = np.empty((2, t.size, self.case.n))
         with jax.enable_x64(True):
             for k, ((_, points), (p, starts, coef, last, edges)) in enumerate(attempts):
-                mine = owner[which] == k  # the points of the P1 values answered from attempt k
-                if mine.any():
+                mine = np.flatnonzero(owner[which] == k)  # the points of the P1 values answered from attempt k
+                if mine.size:
+                    padded = np.concatenate([mine, np.full(_bucket(mine.size) - mine.size, mine[-1])])  # few shapes
                     out = points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
-                                 jnp.asarray(local[which[mine]]), jnp.asarray(t[mine]))
-                    both[:, mine] = np.asarray(out)
+                                 jnp.asarray(local[which[padded]]), jnp.asarray(t[padded]))
+                    both[:, mine] = np.asarray(out)[:, :mine.size]
         return both[0], both[1]
 
     def _identify(self, obs: Observations) -> Estimate:

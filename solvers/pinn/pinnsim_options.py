@@ -36,11 +36,11 @@ FAULT_CONFIG = {**FAULT_DOMAIN, "retry_h": (0.1,)}
 
 
 class PinnSimOptions(OptionSchema):
-    """h (s): the simulator's step, in (0, H_MAX]; retry_h (s): steps, each in (0, H_MAX], a P1 whose
-    trajectory failed at h (a step's Newton or CG, or a machine out of the domain) is simulated again
-    with, in turn, until one holds throughout; where none does, the attempt that held longest is the
-    answer's part before its failure (`PinnSim._answer`); collocation: points t_j = h j / s of a step's network
-    equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest update is <=
+    """h (s): the simulator's step, in (0, H_MAX]; retry_h (s): steps, each in (0, H_MAX], a P1 whose trajectory
+    failed at h (a step's Newton or CG, or a machine out of the domain) is simulated again with, in turn, until
+    one holds throughout (a step met before is skipped); where none does, the attempt that held longest is the
+    answer's part before its failure (`PinnSim._attempts`); collocation: points t_j = h j / s of a step's
+    network equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest update is <=
     newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal matrix formed, O((4 n)^3) an
     iteration) or "matrix-free" (CGLS with products by the network's impedance, preconditioned per machine, to a
     normal residual measure <= cg_tol within max_cg iterations; `solvers.pinn.simulator_newton.cgls`). The
