@@ -200,13 +200,14 @@ class PinnSim(AbstractSolver):
         return fault_schedule(P1, h, t_end, max(case.p1_max, float(P1.max())), min(case.p1_min, float(P1.min())))
 
     def _simulate(self, h: float, t_max: float, P1: np.ndarray, check: bool = True) -> tuple[
-            Any, Any, Any, int, np.ndarray, tuple[str, np.ndarray] | None]:
+            Any, Any, Any, int, np.ndarray, tuple[list, np.ndarray] | None]:
         """(p, starts, coef, the last step simulated, the steps' edges (n_P padded, K + 1) s, the
-        failure) of every P1 over the steps of h (s) that reach t_max (`_schedule`). The failure (`_check`,
-        None without `check` or when every step held): a CG or Newton failure or a machine that
-        leaves the trained domain, the one-line message of the first (naming the step, its start and
-        phase, and P1) and each P1's first failed step's start (s). One compiled function a padded
-        count of P1 (`_bucket`) serves every number of steps up to the horizon."""
+        failure) of every P1 over the steps of h (s) that reach t_max (`_schedule`). The failure
+        (`_check`, None without `check` or when every step held): per P1 the one-line message of its
+        first failed step (a CG or Newton failure or a machine that leaves the trained domain,
+        naming the step, its start and phase, and P1; None where none failed) and that step's start
+        (s). One compiled function a padded count of P1 (`_bucket`) serves every number of steps up
+        to the horizon."""
         options, case = self.options, self.case
         padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
         schedule = self._schedule(h, t_max, padded)
