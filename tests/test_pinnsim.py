@@ -138,9 +138,32 @@ def test_the_matrix_free_jacobian_is_the_formed_one_and_its_transpose():
         blocks = np.asarray(preconditioner_blocks(own, g, Z, column_norms(Z)))
         for k in range(5):
             np.testing.assert_allclose(blocks[k], (J.T @ J)[4 * k:4 * k + 4, 4 * k:4 * k + 4], atol=1e-13)
-        update, iterations, measure = cgls(own, g, Z, r, blocks, 1e-12, 100)
-        assert 0 < int(iterations) <= 20 and float(measure) <= 1e-12
+        update, iterations, measure = cgls(own, g, Z, r, blocks, 1e-12, 100, 1e-12)
+        assert 0 < int(iterations) <= 20 and float(measure) <= 1.0
         np.testing.assert_allclose(np.asarray(update), np.asarray(dense_update(own, g, Z, r)), atol=1e-11)
+
+
+def test_cg_stops_at_its_forcing_term_and_takes_complex64_products():
+    import jax
+    import jax.numpy as jnp
+
+    with jax.enable_x64(True):
+        own, g, Z, r = _random_step()
+        J = np.asarray(formed_jacobian(own, g, Z))
+        blocks = preconditioner_blocks(own, g, Z, column_norms(Z))
+        exact = np.asarray(dense_update(own, g, Z, r))
+
+        def normal_residual(dc):  # |J^T (r + J dc)| / |J^T r|, from the formed J
+            stacked = np.concatenate([r.real.ravel(), r.imag.ravel()])
+            return np.linalg.norm(J.T @ (stacked + J @ np.asarray(dc).ravel())) / np.linalg.norm(J.T @ stacked)
+
+        _, tight_i, _ = cgls(own, g, Z, r, blocks, 1e-12, 100, 1e-12)
+        loose, loose_i, measure = cgls(own, g, Z, r, blocks, 1e-12, 100, 1e-2)
+        assert int(loose_i) < int(tight_i) and float(measure) <= 1.0
+        assert normal_residual(loose) <= 1e-2 < normal_residual(np.zeros_like(exact))
+        single, _, measure = cgls(own, g, Z, r, blocks, 1e-5, 100, 1e-12, Z.astype(jnp.complex64))
+        assert float(measure) <= 1.0 and normal_residual(single) <= 1e-4
+        np.testing.assert_allclose(np.asarray(single), exact, atol=1e-4 * np.abs(exact).max())
 
 
 @pytest.mark.slow
@@ -165,8 +188,35 @@ def test_a_cg_failure_names_the_step_and_p1(trained):  # trained: the network ex
     solver = make_solver("pinnsim", "wscc9", **{**SMALL, "newton": "matrix-free", "max_cg": 1})
     solver.fit()
     with pytest.raises(SolveError, match=r"^pinnsim: CG did not converge at step 1 \(t = 0 s\) for P1 = 0\.5 within "
-                                         r"max_cg = 1 iterations: relative normal residual .* > cg_tol 1e-12$"):
+                                         r"max_cg = 1 iterations: normal residual .* times its tolerance \(cg_forcing "
+                                         r"1e-12 of its start, cg_tol 1e-12 of \|J\| \|r\|\)$"):
         solver.solve(np.array([0.0, 1.0]), 0.5)
+
+
+@pytest.mark.slow
+def test_the_inexact_newton_and_complex64_products_keep_the_trajectories(trained):
+    t, P1 = np.linspace(0.0, 3.0, 31), np.array([CASES["wscc9"].p1_max])
+    runs = {}
+    for name, options in {"exact": {}, "forcing": {"cg_forcing": 1e-3},
+                          "float32": {"cg_forcing": 1e-3, "cg_dtype": "float32", "cg_tol": 1e-5}}.items():
+        solver = make_solver("pinnsim", "wscc9", **SMALL, newton="matrix-free", **options)
+        solver.fit()
+        runs[name] = solver.solve(t, P1), solver.stats
+    (exact, exact_stats), (forced, forced_stats), (single, _) = runs["exact"], runs["forcing"], runs["float32"]
+    assert forced_stats["cg_mean"] < exact_stats["cg_mean"]
+    # the same fixed point (cg_tol 1e-12 decides it); complex64's cg_tol 1e-5 stops the Newton nearer
+    np.testing.assert_allclose(forced.delta, exact.delta, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(single.delta, exact.delta, rtol=0, atol=1e-4)
+
+
+FLOAT32_TOL = r"cg_tol=1e-12 is below what complex64 products resolve \(cg_dtype float32\): use cg_tol >= 1e-05$"
+
+
+@pytest.mark.parametrize("options,message", [({"cg_forcing": 1.0}, "cg_forcing=1.0 must be below 1"),
+                                             ({"cg_dtype": "float32"}, FLOAT32_TOL)])
+def test_a_cg_option_out_of_range_is_one_line(options, message):
+    with pytest.raises(ValueError, match=message):
+        make_solver("pinnsim", "wscc9", **options)
 
 
 def test_an_unknown_newton_solve_is_refused_by_the_schema():

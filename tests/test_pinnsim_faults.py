@@ -87,12 +87,12 @@ def test_the_steps_end_on_each_clearing_time_and_none_is_longer_than_h():
     t_c, h = np.array([0.05, 0.4, 0.17, 0.0]), 0.25
     schedule = fault_schedule(t_c, h, 3.0, 0.4, 0.0)
     k_on = 2  # ceil(0.4 / 0.25) fault-on steps for every t_c, ceil(3 / 0.25) = 12 post-fault ones
-    assert schedule.lengths.shape == schedule.phase.shape == (4, k_on + 12)
+    assert schedule.lengths.shape == (4, k_on + 12) and schedule.phase.shape == (k_on + 12,)
     np.testing.assert_array_equal(schedule.edges[:, k_on], t_c)  # exactly on t_c
     np.testing.assert_array_equal(schedule.edges[:, 0], 0.0)
     np.testing.assert_allclose(schedule.edges[:, -1], 3.0, rtol=0, atol=1e-15)
     assert (schedule.lengths <= h).all() and (schedule.lengths >= 0).all()
-    assert (schedule.phase[:, :k_on] == FAULT_ON).all() and (schedule.phase[:, k_on:] == POST_FAULT).all()
+    assert (schedule.phase[:k_on] == FAULT_ON).all() and (schedule.phase[k_on:] == POST_FAULT).all()
     # to reach 0.17 s: t_c = 0.05 needs its first post-fault step (t_c = 0.4 its first fault-on one)
     assert schedule.steps_to(0.17, h) == k_on + 1
     assert schedule.steps_to(3.0, h) == k_on + 12

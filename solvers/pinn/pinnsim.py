@@ -42,6 +42,7 @@ from solvers.pinn.simulator_faults import (
     tie_admittances,
     uniform_schedule,
 )
+from solvers.pinn.simulator_newton import CG_TOL_FLOAT32
 from solvers.threads import configure_threads
 from systems.cases import FAULT_SCENARIO, NETWORK, STEP_SCENARIO, Case, Observations
 
@@ -96,6 +97,12 @@ class PinnSim(AbstractSolver):
         for h in options["retry_h"]:
             if not h <= H_MAX:
                 raise ValueError(f"{self.name}: option retry_h has a step {h!r} s outside (0, h_max = {H_MAX}] s")
+        if not options["cg_forcing"] < 1.0:
+            raise ValueError(f"{self.name}: option cg_forcing={options['cg_forcing']!r} must be below 1 (CG's "
+                             "normal residual relative to its start)")
+        if options["cg_dtype"] == "float32" and options["cg_tol"] < CG_TOL_FLOAT32:
+            raise ValueError(f"{self.name}: option cg_tol={options['cg_tol']!r} is below what complex64 products resolve "
+                             f"(cg_dtype float32): use cg_tol >= {CG_TOL_FLOAT32:g}")
         if options["collocation"] < 2:
             raise ValueError(f"{self.name}: option collocation must be at least 2 (4 n unknowns, 2 n equations a point)")
         if case.kind != NETWORK or tie_admittances(case) is None:
@@ -214,7 +221,7 @@ class PinnSim(AbstractSolver):
         steps = schedule.steps_to(t_max, h)
         run = simulate_function(self.component, h, schedule.lengths.shape[1], options["collocation"],
                                 options["max_newton"], options["newton_tol"], options["newton"], options["cg_tol"],
-                                options["max_cg"])
+                                options["max_cg"], options["cg_forcing"], options["cg_dtype"])
         p = case.powers(padded) / self._beta
         with jax.enable_x64(True):
             p_j = jnp.asarray(p)
@@ -237,7 +244,7 @@ class PinnSim(AbstractSolver):
         none failed) and its held time (len(P1),) s: the start of its first failed step (its state
         there is the last step's end), inf where none failed."""
         options, symbol = self.options, self.case.scenario.symbol
-        unsolved = ~(cg_residual <= options["cg_tol"]) & (options["newton"] == "matrix-free")
+        unsolved = ~(cg_residual <= 1.0) & (options["newton"] == "matrix-free")
         failed, outside = ~(size <= options["newton_tol"]), excess > 0
         bad = unsolved | failed | outside
         if not bad.any():
@@ -247,11 +254,12 @@ class PinnSim(AbstractSolver):
 
         def message(i: int, k: int) -> str:
             phase = "" if self.case.fault is None else \
-                (" post-fault" if schedule.phase[i, k] == POST_FAULT else " fault-on")
+                (" post-fault" if schedule.phase[k] == POST_FAULT else " fault-on")
             where = f"at{phase} step {k + 1} (t = {schedule.edges[i, k]:g} s) for {symbol} = {float(P1[i])!r}"
             if unsolved[i, k]:
                 return (f"{self.name}: CG did not converge {where} within max_cg = {options['max_cg']} iterations: "
-                        f"relative normal residual {cg_residual[i, k]:.3g} > cg_tol {options['cg_tol']:g}")
+                        f"normal residual {cg_residual[i, k]:.3g} times its tolerance (cg_forcing "
+                        f"{options['cg_forcing']:g} of its start, cg_tol {options['cg_tol']:g} of |J| |r|)")
             if failed[i, k]:
                 return (f"{self.name}: Gauss-Newton did not converge {where} after {int(iterations[i, k])} "
                         f"iterations: last update {size[i, k]:.3g} > newton_tol {options['newton_tol']:g}")

@@ -12,7 +12,7 @@ from solvers.options import (
     PositiveInt,
 )
 from solvers.pinn.component import Domain, Form
-from solvers.pinn.simulator_newton import Newton
+from solvers.pinn.simulator_newton import CgDtype, Newton
 
 __all__ = ["FAULT_CONFIG", "FAULT_DOMAIN", "H_MAX", "STEP_SWEEP", "V0_MAX", "PinnSimOptions"]
 
@@ -42,7 +42,8 @@ class PinnSimOptions(OptionSchema):
     network equation (>= 2); max_newton Gauss-Newton iterations a step, stopping when the largest update is <=
     newton_tol (rad, p.u.); newton: the update's linear solve, "dense" (the normal matrix formed, O((4 n)^3) an
     iteration) or "matrix-free" (CGLS with products by the network's impedance, preconditioned per machine, to a
-    normal residual measure <= cg_tol within max_cg iterations; `solvers.pinn.simulator_newton.cgls`). The
+    normal residual <= cg_forcing (< 1) of its start or <= cg_tol of |J|_F |r| within max_cg iterations: an
+    inexact Newton, whose fixed point cg_tol sets; `solvers.pinn.simulator_newton.cgls`). The
     component network: net_h (s) its time range, its domain (`Domain`: |slip| <= slip_max rad/s, |theta2| <=
     theta2_max rad/s^2, v0 in [v0_min, v0_max] p.u., |v1| <= v1_max p.u./s, |v2| <= v2_max p.u./s^2), its
     output's form (`solvers.pinn.component.Form`: "rest-exact" holds a machine at rest exactly), hidden layers x
@@ -59,6 +60,8 @@ class PinnSimOptions(OptionSchema):
     newton: Newton = "dense"
     cg_tol: PositiveFloat = 1e-12
     max_cg: PositiveInt = 200
+    cg_forcing: PositiveFloat = 1e-12
+    cg_dtype: CgDtype = "float64"
     net_h: PositiveFloat = 0.05
     slip_max: PositiveFloat = Domain.slip
     theta2_max: PositiveFloat = Domain.theta2

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from solvers.pinn.component import Component, phi_rate
-from solvers.pinn.simulator_newton import Newton, column_norms, gauss_newton_update
+from solvers.pinn.simulator_newton import CG_DTYPES, CgDtype, Newton, column_norms, gauss_newton_update
 
 __all__ = ["chain", "impedance", "query_function", "simulate_function", "state_at", "substeps"]
 
@@ -103,18 +103,20 @@ def state_at(component: Component, sub: Any, theta: Any, coef: Any, mu: Any, kap
 
 @functools.lru_cache(maxsize=8)
 def simulate_function(component: Component, h: float, max_steps: int, collocation: int, max_newton: int,
-                      newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-12, max_cg: int = 200) -> Any:
+                      newton_tol: float, newton: Newton = "dense", cg_tol: float = 1e-12, max_cg: int = 200,
+                      cg_forcing: float = 1e-12, cg_dtype: CgDtype = "float64") -> Any:
     """Jitted (theta, machines, p (n_P, n), delta0 (n,), omega0 (n,), steps, lengths (n_P,
-    max_steps) s, phase (n_P, max_steps) int) -> per P1 and step of the first `steps` (<= max_steps;
+    max_steps) s, phase (max_steps,) int) -> per P1 and step of the first `steps` (<= max_steps;
     the rest zero): interval starts (n_P, max_steps, count + 1, n, 2), coefficients (n_P, max_steps,
     n, 6), Newton iterations and the last update's size (n_P, max_steps), and the largest excursion
     of the network inputs out of the domain, in units of the box's half-width (<= 0 inside), with
     its column of `INPUTS` (n_P, max_steps) each, then the step's CG iterations (summed over its
-    Newton iterations) and its CG solves' largest relative normal residual (n_P, max_steps) each (0
-    for the dense Newton). Step k of a P1 lasts lengths[k] <= h (a step case: h every step; a fault
+    Newton iterations) and its CG solves' largest normal residual over its tolerance (`cgls`; <= 1:
+    met) (n_P, max_steps) each (0 for the dense Newton). Step k of a P1 lasts lengths[k] <= h (a step case: h every step; a fault
     case: `simulator_faults.schedule`) on the network Z[phase[k]]; a step starts from the network's
     voltage for its start angles, so at a switch of Z the state is continuous and the voltage
-    jumps. newton, cg_tol, max_cg: the update's linear solve (`simulator_newton.gauss_newton_update`).
+    jumps. newton, cg_tol, max_cg, cg_forcing, cg_dtype: the update's linear solve
+    (`simulator_newton.gauss_newton_update`, its products by Z in `CG_DTYPES[cg_dtype]`).
     machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n_phase, n, n) complex p.u."""
     count, _ = substeps(component, h)
     fractions = np.arange(1, collocation + 1) / collocation
@@ -124,6 +126,7 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
     def one_p(theta, mach, p, delta0, omega0, steps, lengths, phase):
         mu, kappa, w, Zs = mach["mu"], mach["kappa"], mach["w"], mach["Z"]
         all_norms = jax.vmap(column_norms)(Zs)
+        all_products = Zs.astype(CG_DTYPES[cg_dtype])
 
         def linearised(c4, base, delta_start, omega_start, Z, nodes, sub):
             """The residual (n, s) complex and the Jacobian's two block-diagonal factors (n, s, 4) in
@@ -149,7 +152,7 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
 
         def step(k, carry):
             delta_start, omega_start, guess, out = carry
-            length, Z, norms = lengths[k], Zs[phase[k]], all_norms[phase[k]]
+            length, Z, norms, products = lengths[k], Zs[phase[k]], all_norms[phase[k]], all_products[phase[k]]
             nodes, sub = length * fractions, length / count
             V0 = Z @ (w * jnp.exp(1j * delta_start))
             base = jnp.stack([jnp.angle(V0), jnp.abs(V0)], -1)  # (n, 2)
@@ -157,7 +160,8 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
             def iterate(state):
                 c4, i, _, cg, cg_residual = state
                 r, own, g = linearised(c4, base, delta_start, omega_start, Z, nodes, sub)
-                update, cg_i, cg_rel = gauss_newton_update(newton, own, g, Z, norms, r, cg_tol, max_cg)
+                update, cg_i, cg_rel = gauss_newton_update(newton, own, g, Z, norms, r, cg_tol, max_cg, cg_forcing,
+                                                            products)
                 return c4 + update, i + 1, jnp.max(jnp.abs(update)), cg + cg_i, jnp.maximum(cg_residual, cg_rel)
 
             # a step of length 0 has nothing to solve (its state is its start)
@@ -183,7 +187,8 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
                    jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps, jnp.int64), jnp.zeros(max_steps))
         return jax.lax.fori_loop(0, steps, step, (delta0, omega0, first, buffers))[3]
 
-    return jax.jit(jax.vmap(one_p, (None, None, 0, None, None, None, 0, 0)))
+    # Z unbatched (one phase sequence for every P1): a product by Z is one matrix product over every P1
+    return jax.jit(jax.vmap(one_p, (None, None, 0, None, None, None, 0, None)))
 
 
 @functools.lru_cache(maxsize=8)

@@ -38,8 +38,9 @@ FAULT_ON, POST_FAULT = 0, 1  # the phases' rows of the adapter's stack of Z
 
 
 class Schedule(NamedTuple):
-    """Every P1's steps: lengths (n_P, K) s, phase (n_P, K) int (the row of the stack of Z a step
-    is on), edges (n_P, K + 1) s (step k on [edges[k], edges[k + 1]], edges[0] = 0)."""
+    """Every P1's steps: lengths (n_P, K) s, phase (K,) int (the row of the stack of Z step k is on,
+    the same for every P1: the simulator's products by Z then serve every P1 at once), edges (n_P,
+    K + 1) s (step k on [edges[k], edges[k + 1]], edges[0] = 0)."""
 
     lengths: np.ndarray
     phase: np.ndarray
@@ -79,7 +80,7 @@ def impedances(case: Case) -> np.ndarray:
 def uniform_schedule(n_p: int, h: float, steps: int) -> Schedule:
     """A step case's: `steps` steps of h (s) for each of n_p P1, all on the one network (phase 0)."""
     edges = np.tile(h * np.arange(steps + 1, dtype=np.float64), (n_p, 1))
-    return Schedule(np.full((n_p, steps), h), np.zeros((n_p, steps), np.int64), edges)
+    return Schedule(np.full((n_p, steps), h), np.zeros(steps, np.int64), edges)
 
 
 def fault_schedule(t_c: np.ndarray, h: float, t_end: float, longest: float, shortest: float) -> Schedule:
@@ -96,5 +97,5 @@ def fault_schedule(t_c: np.ndarray, h: float, t_end: float, longest: float, shor
     on = t_c[:, None] * (np.arange(k_on + 1) / k_on)  # ends exactly on t_c
     post = t_c[:, None] + (t_end - t_c)[:, None] * (np.arange(1, k_post + 1) / k_post)
     edges = np.concatenate([on, post], axis=1)
-    phase = np.tile(np.r_[np.full(k_on, FAULT_ON), np.full(k_post, POST_FAULT)], (t_c.size, 1))
+    phase = np.r_[np.full(k_on, FAULT_ON), np.full(k_post, POST_FAULT)]
     return Schedule(np.diff(edges, axis=1), phase, edges)
