@@ -54,6 +54,29 @@ def _bucket(count: int) -> int:
     return 1 << (count - 1).bit_length() if count <= 16 else -(-count // 16) * 16
 
 
+# A query's dense output evaluates every machine's network at every (P1, time) or point at once; its
+# largest buffer holds 800 bytes an evaluation (case9241pegase's grid, 112 x 201 x 1445 of them, asked
+# for 26.0 GB). A query is split into calls of at most this many bytes of that buffer.
+EVALUATION_BYTES, QUERY_BYTES = 800, 2**30
+
+
+def _chunk(count: int, per_item: int) -> int:
+    """How many of `count` items (times, or points) one query call takes, each item `per_item`
+    network evaluations: all where they fit in `QUERY_BYTES`, else a fixed number (>= 1; the calls
+    padded to it compile once)."""
+    return max(1, min(count, QUERY_BYTES // (EVALUATION_BYTES * max(per_item, 1))))
+
+
+def _pieces(values: np.ndarray, size: int) -> list[tuple[slice, np.ndarray]]:
+    """`values` in pieces of `size`, the last padded with its last value: (the piece's slice of
+    values, the padded piece)."""
+    pieces = []
+    for start in range(0, values.size, size):
+        piece = values[start:start + size]
+        pieces.append((slice(start, start + piece.size), np.concatenate([piece, np.full(size - piece.size, piece[-1])])))
+    return pieces
+
+
 def machine_parameters(case: Case) -> dict[str, np.ndarray]:
     """Each machine on its own beta = E |y| (p.u.): mu = m / beta (s^2/rad), kappa = d / beta (s/rad),
     beta, and w = y E (complex p.u.), y its tie admittance (`tie_admittances`)."""
@@ -304,8 +327,10 @@ class PinnSim(AbstractSolver):
             for k, ((grid, _), (p, starts, coef, last, edges)) in enumerate(attempts):
                 mine = owner == k
                 if mine.any():
-                    out = grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges), jnp.asarray(t))
-                    both[:, mine] = np.asarray(out)[:, local[mine]]
+                    for part, times in _pieces(t, _chunk(t.size, p.shape[0] * self.case.n)):
+                        out = grid(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
+                                   jnp.asarray(times))
+                        both[:, mine, part] = np.asarray(out)[:, local[mine], :part.stop - part.start]
         delta, omega = both[0], both[1]
         if message is not None:
             raise PartialSolveError(message, np.where(t[None, :, None] < held[:, None, None], delta, np.nan), held)
@@ -321,10 +346,12 @@ class PinnSim(AbstractSolver):
             for k, ((_, points), (p, starts, coef, last, edges)) in enumerate(attempts):
                 mine = np.flatnonzero(owner[which] == k)  # the points of the P1 values answered from attempt k
                 if mine.size:
-                    padded = np.concatenate([mine, np.full(_bucket(mine.size) - mine.size, mine[-1])])  # few shapes
-                    out = points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
-                                 jnp.asarray(local[which[padded]]), jnp.asarray(t[padded]))
-                    both[:, mine] = np.asarray(out)[:, :mine.size]
+                    size = _chunk(mine.size, self.case.n)
+                    size = _bucket(size) if size == mine.size else size  # few shapes
+                    for part, chosen in _pieces(mine, size):
+                        out = points(self._theta, self._machines, p, starts, coef, last, jnp.asarray(edges),
+                                     jnp.asarray(local[which[chosen]]), jnp.asarray(t[chosen]))
+                        both[:, mine[part]] = np.asarray(out)[:, :part.stop - part.start]
         return both[0], both[1]
 
     def _identify(self, obs: Observations) -> Estimate:
