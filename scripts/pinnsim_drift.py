@@ -16,13 +16,12 @@ OUT/pinnsim_drift.csv, the command and each fit's message to OUT/pinnsim_drift.j
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from harness.report.files import write_script_rows
 from solvers import make_solver
 from solvers.pinn.component_error import option_argument
 from systems.cases import CASES
@@ -66,14 +65,8 @@ def main(argv: list[str] | None = None) -> int:
             row, fits[name] = measure(name, h, options)
             rows.append(row)
             print(row)
-    args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / "pinnsim_drift.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
     command = " ".join(["python scripts/pinnsim_drift.py", *(argv if argv is not None else sys.argv[1:])])
-    record = {"command": command, "options": options, "fits": fits}
-    (args.out / "pinnsim_drift.json").write_text(json.dumps(record, indent=1) + "\n")
+    write_script_rows(args.out, "pinnsim_drift", rows, {"command": command, "options": options, "fits": fits})
     return 0
 
 

@@ -20,14 +20,13 @@ fit's message to OUT/pinnsim_faults.json.
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from harness.measure import metrics
+from harness.report.files import write_script_rows
 from harness.suites.accuracy import COI_DELTA
 from harness.suites.cct import criterion_times, partial_labels
 from solvers import make_solver
@@ -111,14 +110,8 @@ def main(argv: list[str] | None = None) -> int:
         rows += case_rows
         for row in case_rows:
             print(row)
-    args.out.mkdir(parents=True, exist_ok=True)
-    fields = list(dict.fromkeys(key for row in rows for key in row))
-    with open(args.out / "pinnsim_faults.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(rows)
     command = " ".join(["python scripts/pinnsim_faults.py", *(argv if argv is not None else sys.argv[1:])])
-    (args.out / "pinnsim_faults.json").write_text(json.dumps({"command": command, "fits": fits}, indent=1) + "\n")
+    write_script_rows(args.out, "pinnsim_faults", rows, {"command": command, "fits": fits})
     return 0
 
 

@@ -23,9 +23,19 @@ from harness.report.tables import build_tables
 from harness.report.verdicts import restated
 from solvers.atomic import atomic_write
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "write_script_rows"]
 
 TRAJECTORY_COLUMNS = ("best_pred", "best_ref", "worst_pred", "worst_ref", "traj_t", "traj_pred", "traj_ref")
+
+
+def write_script_rows(out_dir: Path, stem: str, rows: list[dict], record: dict) -> None:
+    """A script's rows as `out_dir/<stem>.csv` (tidy: the union of their keys, in order of first
+    appearance; a missing value empty) and `record` (its command and what it fitted) as
+    `out_dir/<stem>.json`, each atomically; out_dir made if missing."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write(out_dir / f"{stem}.csv", pd.DataFrame(rows).to_csv(index=False))
+    atomic_write(out_dir / f"{stem}.json", json.dumps(record, indent=1) + "\n")
 
 
 def write_report(rows: list[dict], out_dir: Path, meta: dict, plots: bool = True) -> str:
