@@ -67,14 +67,16 @@ def _chunk(count: int, per_item: int) -> int:
     return max(1, min(count, QUERY_BYTES // (EVALUATION_BYTES * max(per_item, 1))))
 
 
+def _padded(values: np.ndarray, size: int) -> np.ndarray:
+    """`values` (non-empty) padded to `size` with its last value (a compiled shape reused)."""
+    return np.concatenate([values, np.full(size - values.size, values[-1])])
+
+
 def _pieces(values: np.ndarray, size: int) -> list[tuple[slice, np.ndarray]]:
-    """`values` in pieces of `size`, the last padded with its last value: (the piece's slice of
-    values, the padded piece)."""
-    pieces = []
-    for start in range(0, values.size, size):
-        piece = values[start:start + size]
-        pieces.append((slice(start, start + piece.size), np.concatenate([piece, np.full(size - piece.size, piece[-1])])))
-    return pieces
+    """`values` in pieces of `size`, the last `_padded`: (the piece's slice of values, the padded
+    piece)."""
+    return [(slice(start, min(start + size, values.size)), _padded(values[start:start + size], size))
+            for start in range(0, values.size, size)]
 
 
 def machine_parameters(case: Case) -> dict[str, np.ndarray]:
@@ -239,7 +241,7 @@ class PinnSim(AbstractSolver):
         (s). One compiled function a padded count of P1 (`_bucket`) serves every number of steps up
         to the horizon."""
         options, case = self.options, self.case
-        padded = np.concatenate([P1, np.full(_bucket(P1.size) - P1.size, P1[-1])])
+        padded = _padded(P1, _bucket(P1.size))
         schedule = self._schedule(h, t_max, padded)
         steps = schedule.steps_to(t_max, h)
         run = simulate_function(self.component, h, schedule.lengths.shape[1], options["collocation"],

@@ -112,10 +112,10 @@ def simulate_function(component: Component, h: float, max_steps: int, collocatio
     of the network inputs out of the domain, in units of the box's half-width (<= 0 inside), with
     its column of `INPUTS` (n_P, max_steps) each, then the step's CG iterations (summed over its
     Newton iterations) and its CG solves' largest normal residual over its tolerance (`cgls`; <= 1:
-    met) (n_P, max_steps) each (0 for the dense Newton). Step k of a P1 lasts lengths[k] <= h (a step case: h every step; a fault
-    case: `simulator_faults.schedule`) on the network Z[phase[k]]; a step starts from the network's
-    voltage for its start angles, so at a switch of Z the state is continuous and the voltage
-    jumps. newton, cg_tol, max_cg, cg_forcing, cg_dtype: the update's linear solve
+    met) (n_P, max_steps) each (0 for the dense Newton). Step k of a P1 lasts lengths[k] <= h (a
+    step case: h every step; a fault case: `simulator_faults.schedule`) on the network Z[phase[k]],
+    the same phases for every P1; a step starts from the network's voltage for its start angles, so
+    at a switch of Z the state is continuous and the voltage jumps. newton, cg_tol, max_cg, cg_forcing, cg_dtype: the update's linear solve
     (`simulator_newton.gauss_newton_update`, its products by Z in `CG_DTYPES[cg_dtype]`).
     machines: a dict of mu, kappa (n,) s^2/rad, s/rad, w = y E (n,) and Z (n_phase, n, n) complex p.u."""
     count, _ = substeps(component, h)

@@ -23,7 +23,7 @@ complex y (n, s).
   Newton (Eisenstat & Walker's forcing term, fixed): CG stops when the normal residual
   |J^T (r + J dc)| is <= forcing times its value at dc = 0, or <= tol times |J|_F |r + J dc| (the
   fixed point's test, below), or after max_cg iterations, and reports its iterations and that
-  residual over the nearer of its two tolerances (<= 1: met).
+  residual over the larger of its two bounds (<= 1: met).
 """
 
 from __future__ import annotations
