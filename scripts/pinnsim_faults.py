@@ -1,17 +1,17 @@
-"""pinnsim (config "faults") on fault cases where the harness's accuracy suite cannot ask it: it
-queries clearing times on both sides of the CCT in one call, and past the CCT a machine slips
-poles, leaves any trained domain, and pinnsim refuses the whole call (SolveError). (The cct suite
-asks a refused batch again one clearing time at a time, and judges a trajectory on the part that
-held: `harness.suites.cct`.)
+"""pinnsim (config "faults") on fault cases, each side of the CCT apart: past the CCT a machine
+slips poles, leaves any trained domain, and pinnsim refuses those clearing times (SolveError). The
+accuracy suite asks such a grid again one clearing time at a time and measures what was answered
+(`harness.suites.accuracy.answers`); this script adds, of the refused clearing times past the CCT,
+how many crossed the cct suite's criterion before they stopped (`harness.suites.cct`).
 
 Per case, on the standard grid (`systems.cases.standard_grid`: 100 clearing times x 201 times):
 the clearing times below the reference CCT (`systems.stability.reference_cct`) in one call (each
 alone if that call is refused), its errors against the reference (`systems.reference`) of the
 angles from the centre of inertia (rad) and the speeds (rad/s), as the accuracy suite's "reference,
-stable clearing times" rows measure them; then each clearing time at or above the CCT alone: refused
-(SolveError), or answered, and then judged by the cct suite's criterion (`is_unstable` at its
-times); of the refused, those whose trajectory crossed the criterion before it stopped (as the cct
-suite judges them unstable: `partial_labels`). Rows to OUT/pinnsim_faults.csv, the command and each
+stable clearing times" rows measure them; then the clearing times at or above the CCT likewise:
+refused (SolveError), or answered, and then judged by the cct suite's criterion (`is_unstable` at
+its times); of the refused, those whose trajectory crossed the criterion before it stopped (as the
+cct suite judges them unstable: `stability_labels`). Rows to OUT/pinnsim_faults.csv, the command and each
 fit's message to OUT/pinnsim_faults.json.
 
     python scripts/pinnsim_faults.py --out results/pinnsim-faults [--case NAME ...] [--option KEY=VALUE ...]
@@ -27,10 +27,9 @@ import numpy as np
 
 from harness.measure import metrics
 from harness.report.files import write_script_rows
-from harness.suites.accuracy import COI_DELTA
-from harness.suites.cct import criterion_times, partial_labels
+from harness.suites.accuracy import COI_DELTA, answers
+from harness.suites.cct import criterion_times, stability_labels
 from solvers import make_solver
-from solvers.base import PartialSolveError, SolveError
 from solvers.pinn.component_error import option_argument
 from systems.cases import CASES, standard_grid
 from systems.model import relative_angles
@@ -43,26 +42,14 @@ CASES_MEASURED = ("wscc9-bus8-line8-9", "kundur4-bus7-line7-8a")
 def _answers(solver, t: np.ndarray, T_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str],
                                                                 np.ndarray]:
     """(delta, omega) (len(T_c), len(t), n) (NaN where refused), answered (len(T_c),) bool, the
-    refusals' messages, and seen (len(T_c),) bool: refused, but past the cct suite's criterion before
-    the trajectory stopped (`partial_labels`); one call for all, else one call each."""
-    n = solver.case.n
-    try:
-        traj = solver.solve(t, T_c)
-        return traj.delta, traj.omega, np.ones(T_c.size, bool), [], np.zeros(T_c.size, bool)
-    except SolveError:
-        pass
-    delta, omega = np.full((2, T_c.size, t.size, n), np.nan)
-    answered, seen, messages = np.zeros(T_c.size, bool), np.zeros(T_c.size, bool), []
-    for i, t_c in enumerate(T_c):
-        try:
-            traj = solver.solve(t, float(t_c))
-            delta[i], omega[i], answered[i] = traj.delta[0], traj.omega[0], True
-        except PartialSolveError as exc:
-            messages.append(str(exc))
-            seen[i] = partial_labels(solver.case, exc)[0] == 1.0
-        except SolveError as exc:
-            messages.append(str(exc))
-    return delta, omega, answered, messages, seen
+    refusals' messages (the accuracy suite's `answers`: one call for all, else one call each), and
+    seen (len(T_c),) bool: refused, but past the cct suite's criterion before the trajectory
+    stopped (`stability_labels`)."""
+    got = answers(solver, t, T_c)
+    seen = np.zeros(T_c.size, bool)
+    if not got.answered.all():
+        seen[~got.answered] = stability_labels(solver, T_c[~got.answered]) == 1.0
+    return got.delta, got.omega, got.answered, got.refusals, seen
 
 
 def measure(name: str, options: dict) -> tuple[list[dict], str]:
@@ -88,12 +75,12 @@ def measure(name: str, options: dict) -> tuple[list[dict], str]:
                      "first_refusal": messages[0] if messages else ""})
     tc = criterion_times(case)
     none = (None, None, np.zeros(0, bool), [], np.zeros(0, bool))
-    answers = _answers(solver, tc, T_c[~stable]) if (~stable).any() else none
-    judged = is_unstable(case, answers[0][answers[2]]) if answers[2].any() else np.zeros(0, bool)
+    past = _answers(solver, tc, T_c[~stable]) if (~stable).any() else none
+    judged = is_unstable(case, past[0][past[2]]) if past[2].any() else np.zeros(0, bool)
     rows.append({**base, "quantity": "stability", "against": UNSTABLE_CLEARING, "unit": "clearing times",
-                 "clearing_times": int((~stable).sum()), "answered": int(answers[2].sum()),
-                 "judged_unstable": int(judged.sum()), "seen_unstable_before_refusal": int(answers[4].sum()),
-                 "first_refusal": answers[3][0] if answers[3] else ""})
+                 "clearing_times": int((~stable).sum()), "answered": int(past[2].sum()),
+                 "judged_unstable": int(judged.sum()), "seen_unstable_before_refusal": int(past[4].sum()),
+                 "first_refusal": past[3][0] if past[3] else ""})
     return rows, report.message
 
 

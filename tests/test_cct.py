@@ -21,7 +21,7 @@ from harness.run.plan import plan
 from harness.run.runner import run_unit
 from harness.settings import QUICK, SolverSpec
 from harness.suites import SUITES
-from harness.suites.accuracy import COI_DELTA, accuracy, stability_classes
+from harness.suites.accuracy import COI_DELTA, accuracy, answers, stability_classes
 from harness.suites.cct import BRACKET_S, bisect, cct, criterion_times, grid_then_bisect
 from solvers import SOLVERS
 from solvers.base import AbstractSolver, FitReport, PartialSolveError, SolveError
@@ -361,6 +361,71 @@ def test_accuracy_counts_the_clearing_times_a_surrogate_puts_on_the_wrong_side_o
     between = P1[(P1 >= reference_cct(case)) & (P1 <= reference_cct(case) + SHIFT_S)]
     assert between.size == 1 and classes["misclassified"] == 1
     assert classes["classified_correct"] == 0.99 and classes["misclassified_t_c"] == f"{between[0]:.6g}"
+
+
+def test_a_refused_grid_is_asked_one_clearing_time_at_a_time_and_the_refused_ones_are_nan():
+    """`answers`: the surrogate refuses every call holding a clearing time in (t*, t* + 25 ms]; the
+    grid's other clearing times get the trajectories the unrefusing surrogate gives them."""
+    case = CASES[CASE]
+    t, P1 = standard_grid(case)
+    t_star = reference_cct(case) + SHIFT_S
+    refused = (P1 > t_star) & (P1 <= t_star + RefusingSurrogate.REFUSED[1])
+    got = answers(_fitted(RefusingSurrogate, case), t, P1)
+    assert refused.sum() > 1 and (got.answered == ~refused).all() and len(got.refusals) == refused.sum()
+    assert got.refusals[0].startswith(f"{RefusingSurrogate.name}: refused t_c in")
+    whole = _fitted(ShiftedSurrogate, case).solve(t, P1)
+    np.testing.assert_array_equal(got.delta[~refused], whole.delta[~refused])
+    np.testing.assert_array_equal(got.omega[~refused], whole.omega[~refused])
+    assert np.isnan(got.delta[refused]).all() and np.isnan(got.omega[refused]).all()
+    assert answers(_fitted(ShiftedSurrogate, case), t, P1).answered.all()
+
+
+def test_the_stability_classes_count_a_refused_clearing_time_on_neither_side():
+    """Refused clearing times (past t*, where the reference is unstable) are not classified
+    correctly and not misclassified: the row counts and lists them apart."""
+    case = CASES[CASE]
+    P1 = standard_grid(case)[1]
+    t_star = reference_cct(case) + SHIFT_S
+    refused = (P1 > t_star) & (P1 <= t_star + RefusingSurrogate.REFUSED[1])
+    wrong = (P1 >= reference_cct(case)) & (P1 <= t_star)
+    classes = stability_classes(_fitted(RefusingSurrogate, case), case, P1, P1 < reference_cct(case))
+    assert (classes["refused"], classes["misclassified"]) == (refused.sum(), wrong.sum())
+    assert classes["refused_t_c"] == " ".join(f"{x:.6g}" for x in P1[refused])
+    assert classes["classified_correct"] == pytest.approx(1.0 - (refused.sum() + wrong.sum()) / P1.size)
+
+
+@pytest.mark.slow
+def test_accuracy_on_a_fault_case_measures_the_answered_clearing_times_and_says_how_many():
+    """A fault case's errors are over the clearing times the adapter answered, and every error row
+    and the report's accuracy table say how many of how many; an adapter that refuses every clearing
+    time fails the unit with the first refusal."""
+    case = CASES[CASE]
+    t, P1 = standard_grid(case)
+    t_star = reference_cct(case) + SHIFT_S
+    refused = (P1 > t_star) & (P1 <= t_star + RefusingSurrogate.REFUSED[1])
+    rows = accuracy(_fitted(RefusingSurrogate, case), case, SETTINGS)
+    (grid,) = [row for row in rows if row["quantity"] == COI_DELTA and row["against"] == "reference"]
+    assert (grid["trajectories"], grid["answered"]) == (P1.size, P1.size - refused.sum())
+    assert grid["first_refusal"].startswith(f"{RefusingSurrogate.name}: refused")
+    whole = {(row["quantity"], row["against"]): row for row in accuracy(_fitted(ShiftedSurrogate, case), case, SETTINGS)}
+    (stable,) = [row for row in rows if row["quantity"] == COI_DELTA and row["against"] == STABLE_CLEARING]
+    assert stable["answered"] == stable["trajectories"] == (P1 < reference_cct(case)).sum()
+    assert stable["rel_l2"] == whole[COI_DELTA, STABLE_CLEARING]["rel_l2"]  # nothing refused there
+    (unstable,) = [row for row in rows if row["quantity"] == "omega" and row["against"] == UNSTABLE_CLEARING]
+    assert unstable["answered"] == unstable["trajectories"] - refused.sum()
+    ref = reference(case, t, P1[~refused & (P1 >= reference_cct(case))])[1]
+    assert unstable["max_abs"] == pytest.approx(np.abs(ref).max())  # the surrogate's speeds are 0
+    base = {"suite": "accuracy", "case": CASE, "solver": RefusingSurrogate.name, "config": "default", "variant": "",
+            "seed": 0, "threads": 1, "status": "ok"}
+    ((_, frames),) = case_sections(suite_frames([{**base, **row} for row in rows]))
+    *_, table = build_tables(frames)["accuracy"]
+    assert table[f"{COI_DELTA} rel. L2"].iloc[0].endswith(f"({P1.size - refused.sum()} of {P1.size} answered)")
+
+    class RefusesAll(RefusingSurrogate):
+        REFUSED = (-1.0, 1.0)
+
+    with pytest.raises(SolveError, match=f"refused every clearing time of {CASE}'s grid; the first: "):
+        accuracy(_fitted(RefusesAll, case), case, SETTINGS)
 
 
 def test_the_summary_counts_the_cases_a_pinn_finds_the_cct_on_and_its_time_against_the_classical_search():

@@ -59,6 +59,9 @@ def _accuracy_table(frames: dict) -> pd.DataFrame:
             if sel.empty:
                 continue
             row[f"{title} rel. L2"] = fmt_range(sel["rel_l2"])
+            if "answered" in sel and (sel["answered"] < sel["trajectories"]).any():  # refusals (a fault case)
+                worst = sel.loc[sel["answered"].idxmin()]
+                row[f"{title} rel. L2"] += f" ({int(worst['answered'])} of {int(worst['trajectories'])} answered)"
             if against in (OFF_TRAINING, STABLE_CLEARING):
                 continue
             row[f"{title} max abs"] = fmt_range(sel["max_abs"])

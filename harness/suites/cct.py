@@ -57,7 +57,7 @@ from systems.reference import reference
 from systems.stability import ANGLE_LIMIT, is_unstable, reference_cct
 
 __all__ = ["BRACKET_S", "CRITERION_DT_S", "Search", "bisect", "cct", "criterion_times", "grid_then_bisect",
-           "partial_labels"]
+           "partial_labels", "stability_labels"]
 
 BRACKET_S = 1e-3  # s: the width of the bracket every method narrows the CCT to
 CRITERION_DT_S = 0.01  # s: the spacing of the times the criterion is judged at
@@ -128,6 +128,14 @@ class _Judge:
 
     def search(self, stable_s: float, unstable_s: float, note: str = "") -> Search:
         return Search(stable_s, unstable_s, self.solves, self.trajectories, note, len(self.refused_t_c))
+
+
+def stability_labels(solver: AbstractSolver, t_c: np.ndarray) -> np.ndarray:
+    """(len(t_c),) float: 1.0 where `solver`'s trajectory cleared at t_c (s) is unstable by the
+    criterion at `criterion_times`, 0.0 stable, NaN refused, judged as a search judges them (a
+    refused batch asked again one clearing time at a time, a stopped trajectory on the part that
+    held)."""
+    return _Judge(solver, criterion_times(solver.case))(np.asarray(t_c, np.float64))
 
 
 def partial_labels(case: Case, error: PartialSolveError) -> np.ndarray:
