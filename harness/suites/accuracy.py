@@ -60,15 +60,16 @@ class Answers(NamedTuple):
     refusals: list[str]
 
 
-def answers(solver: AbstractSolver, t: np.ndarray, P1: np.ndarray) -> Answers:
+def answers(solver: AbstractSolver, t: np.ndarray, P1: np.ndarray, one_at_a_time: bool = True) -> Answers:
     """`solver`'s trajectories at the times t (s) for P1: one call for all; where the adapter refuses
     that call (`SolveError`: pinnsim, when a machine slips poles and leaves its trained domain), one
-    call per P1, and a P1 refused alone is NaN."""
+    call per P1, and a P1 refused alone is NaN (with `one_at_a_time` False, the refusal is raised)."""
     try:
         traj = solver.solve(t, P1)
         return Answers(traj.delta, traj.omega, np.ones(P1.size, bool), [])
     except SolveError:
-        pass
+        if not one_at_a_time:
+            raise
     delta, omega = np.full((2, P1.size, t.size, solver.case.n), np.nan)
     answered, refusals = np.zeros(P1.size, bool), []
     for i, p1 in enumerate(P1):
@@ -101,15 +102,6 @@ def off_training_grid(case: Case) -> tuple[np.ndarray, np.ndarray]:
     values (neither edge). Returns (t, P1)."""
     t, P1 = standard_grid(case)
     return 0.5 * (t[1:] + t[:-1]), 0.5 * (P1[1:] + P1[:-1])
-
-
-def _ask(solver: AbstractSolver, t: np.ndarray, P1: np.ndarray) -> Answers:
-    """`answers` on a fault case (a refusal there is expected past the CCT); elsewhere one call, whose
-    refusal is the adapter's failure, the unit's failed row."""
-    if solver.case.fault is not None:
-        return answers(solver, t, P1)
-    traj = solver.solve(t, P1)
-    return Answers(traj.delta, traj.omega, np.ones(P1.size, bool), [])
 
 
 def _answered_errors(quantity: str, against: str, unit: str, pred: np.ndarray, ref: np.ndarray,
@@ -145,12 +137,13 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
     (`answered` of `trajectories`); one that answers none fails the unit. Elsewhere a refusal
     fails the unit."""
     t, P1 = standard_grid(case)
-    traj = _ask(solver, t, P1)
+    fault = case.fault is not None  # a refusal is expected there past the CCT; elsewhere it fails the unit
+    traj = answers(solver, t, P1, one_at_a_time=fault)
     if not traj.answered.any():
         raise SolveError(f"{solver.name} refused every clearing time of {case.name}'s grid; the first: {traj.refusals[0]}")
     ref_delta, ref_omega = reference(case, t, P1)
     t_off, p_off = off_training_grid(case)
-    off = _ask(solver, t_off, p_off)
+    off = answers(solver, t_off, p_off, one_at_a_time=fault)
     off_delta, off_omega = reference(case, t_off, p_off)
     rows = [
         _answered_errors("delta", "reference", "rad", traj.delta, ref_delta, traj, P1=P1),
@@ -165,7 +158,7 @@ def accuracy(solver: AbstractSolver, case: Case, settings: Settings) -> list[dic
             _answered_errors(COI_DELTA, OFF_TRAINING, "rad", relative_angles(case, off.delta),
                              relative_angles(case, off_delta), off),
         ]
-    if case.fault is not None:
+    if fault:
         stable = P1 < reference_cct(case)
         for side, against in ((stable, STABLE_CLEARING), (~stable, UNSTABLE_CLEARING)):
             if side.any():
